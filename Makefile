@@ -1,0 +1,54 @@
+# ctrlbus: every job starts with `setup`, which installs what a fresh Debian machine lacks.
+SHELL := /bin/bash
+VENV  := .venv
+PY    := $(VENV)/bin/python
+BUILD := build
+JOBS  ?= 2
+DEMO_ARGS ?=
+
+.PHONY: all setup c-build c-test c-test-asan lint py-test test demo size bench fuzz clean
+
+all: test
+
+setup:
+	@scripts/setup.sh
+
+# Host build of the C library, tests and examples (warnings are errors).
+c-build: setup
+	@cmake -S c -B $(BUILD)/c -G Ninja -DCMAKE_BUILD_TYPE=Debug >/dev/null
+	@cmake --build $(BUILD)/c -j $(JOBS)
+
+c-test: c-build
+	@ctest --test-dir $(BUILD)/c --output-on-failure -j $(JOBS)
+
+# The same tests under AddressSanitizer + UndefinedBehaviorSanitizer.
+c-test-asan: setup
+	@cmake -S c -B $(BUILD)/c-asan -G Ninja -DCMAKE_BUILD_TYPE=Debug -DCTRLBUS_SANITIZE=ON >/dev/null
+	@cmake --build $(BUILD)/c-asan -j $(JOBS)
+	@ctest --test-dir $(BUILD)/c-asan --output-on-failure -j $(JOBS)
+
+lint: setup
+	@cd python && ../$(VENV)/bin/ruff check src tests && ../$(VENV)/bin/ruff format --check src tests
+	@cd python && ../$(VENV)/bin/mypy src tests
+
+# Python tests run against the C builds too (host base, firmware), so build those first.
+py-test: c-build
+	@cd python && ../$(VENV)/bin/pytest -q
+
+test: c-test c-test-asan lint py-test
+	@echo "make test: all suites passed"
+
+demo: c-build
+	@$(PY) -m ctrlbus.demo $(DEMO_ARGS)
+
+size: setup
+	@scripts/size.sh
+
+bench: c-build
+	@$(PY) bench/run.py
+
+fuzz: setup
+	@scripts/fuzz.sh $(FUZZ_SECONDS)
+
+clean:
+	rm -rf $(BUILD)

@@ -1,0 +1,5 @@
+import sys
+
+from ctrlbus.cli import main
+
+sys.exit(main())
