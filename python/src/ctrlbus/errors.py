@@ -18,9 +18,19 @@ class MessageError(CtrlbusError, ValueError):
 class MessageFormatError(MessageError):
     """Wrong payload length or out-of-range value for the command (a base answers ERROR 0x8001)."""
 
+    error_code = 0x8001  # the ERROR code a base answers with
+
 
 class UnsupportedMessageError(MessageError):
     """Unknown command, control-bus request or sub-command (a base answers ERROR 0x8000/0x8002)."""
+
+    error_code = 0x8000  # the ERROR code a base answers with
+
+
+class UnsupportedSubcommandError(UnsupportedMessageError):
+    """Unknown HEALTH_MGMT sub-command: the reference answers ERROR 0x8002 here, not 0x8000."""
+
+    error_code = 0x8002
 
 
 class LinkError(CtrlbusError, OSError):
@@ -33,3 +43,24 @@ class ProtocolTimeout(CtrlbusError, TimeoutError):
 
 class UsageError(CtrlbusError):
     """Bad command-line or API arguments; the CLI prints it on one line and exits 2."""
+
+
+class BinaryConfigError(CtrlbusError, ValueError):
+    """A binary configuration blob (0x21) or its JSON form that cannot be decoded or encoded.
+
+    `offset` is the byte offset in the blob where decoding failed; `path` is where in the JSON tree
+    encoding failed (like `base.sensors[2].id`). Either may be None.
+    """
+
+    def __init__(self, message: str, *, offset: int | None = None, path: str | None = None) -> None:
+        super().__init__(message)
+        self.offset = offset
+        self.path = path
+
+
+class CaptureError(CtrlbusError, ValueError):
+    """A capture file that is not a ctrlbus pcap, or is damaged."""
+
+
+class SimConfigError(CtrlbusError, ValueError):
+    """A simulator base or room description that cannot be used; the message names the file and key."""
