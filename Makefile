@@ -6,7 +6,7 @@ BUILD := build
 JOBS  ?= 2
 DEMO_ARGS ?=
 
-.PHONY: all setup c-build c-test c-test-asan lint py-test test demo size bench fuzz clean
+.PHONY: all setup c-build firmware c-test c-test-asan lint py-test test demo size bench fuzz clean
 
 all: test
 
@@ -17,6 +17,10 @@ setup:
 c-build: setup
 	@cmake -S c -B $(BUILD)/c -G Ninja -DCMAKE_BUILD_TYPE=Debug >/dev/null
 	@cmake --build $(BUILD)/c -j $(JOBS)
+
+# Cortex-M3 firmware for QEMU's mps2-an385 board (arm-none-eabi-gcc).
+firmware: setup
+	@$(MAKE) --no-print-directory -C c/firmware O=$(CURDIR)/$(BUILD)/firmware
 
 c-test: c-build
 	@ctest --test-dir $(BUILD)/c --output-on-failure -j $(JOBS)
@@ -32,7 +36,7 @@ lint: setup
 	@cd python && ../$(VENV)/bin/mypy src tests
 
 # Python tests run against the C builds too (host base, firmware), so build those first.
-py-test: c-build
+py-test: c-build firmware
 	@cd python && ../$(VENV)/bin/pytest -q
 
 test: c-test c-test-asan lint py-test

@@ -1,0 +1,34 @@
+/* Command line of posix_base. */
+#ifndef CTRLBUS_POSIX_BASE_OPTIONS_H
+#define CTRLBUS_POSIX_BASE_OPTIONS_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+typedef enum {
+    PROFILE_REFERENCE, /* answer sizes of the vendor's 2018 reference base (CONNECT 28, 0x41 13) */
+    PROFILE_SDK2020    /* answer sizes the vendor's 2020 master SDK reads (CONNECT 39, 0x41 17) */
+} posix_base_profile_t;
+
+typedef struct {
+    int show_help;
+    int use_pty;
+    char listen_host[64]; /* empty unless --listen */
+    uint16_t listen_port; /* 0: let the system pick one (the chosen port is printed) */
+    posix_base_profile_t profile;
+    uint32_t watchdog_ms;        /* 0: motor watchdog off */
+    uint32_t time_scale_percent; /* simulated time per real time; 100 = real time */
+    int32_t battery_percent;     /* battery at start, 1..100 */
+    int verbose;
+} posix_base_options_t;
+
+#define POSIX_BASE_DEFAULT_WATCHDOG_MS 1000u
+
+/* Parse argv into *options (defaults first). Returns 0 on success; on a bad command line returns
+ * -1 with a one-line description in error[error_size] (no trailing newline). */
+int posix_base_parse_options(int argc, char **argv, posix_base_options_t *options, char *error, size_t error_size);
+
+/* The --help text. */
+const char *posix_base_usage(void);
+
+#endif

@@ -1,0 +1,76 @@
+/* base_glue: the simulated base (simbase) served by the ctrlbus base stack (ctrlbus/base.h).
+ *
+ * One piece of code for both hosts of the simulated base: posix_base (c/examples/posix_base, a
+ * pty or TCP link) and the QEMU firmware (c/firmware, UART0). They only move bytes and time:
+ *
+ *     base_glue_init(&glue, &options, now_ms);
+ *     on received bytes (main loop or UART interrupt):   base_glue_feed(&glue, data, size);
+ *     in the main loop, at least every few ms:            base_glue_poll(&glue, now_ms);
+ *
+ * and answers leave through options.write. Everything else lives here: the stack instance and its
+ * receive ring, the simulation and its clock, and the handlers that answer each request from the
+ * simulation (simbase_answers.h) or apply it to the simulation.
+ *
+ * STATUS: this is the integration point with the base stack, whose header c/include/ctrlbus/base.h
+ * is not written yet. The interface below is what posix_base/main.c and firmware/base_main.c call;
+ * base_glue.c (the handlers registered with the stack) is written once base.h exists. Until then
+ * neither program is built (see c/examples/CMakeLists.txt and c/firmware/Makefile).
+ */
+#ifndef CTRLBUS_EXAMPLES_BASE_GLUE_H
+#define CTRLBUS_EXAMPLES_BASE_GLUE_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "ctrlbus/base.h"
+#include "ctrlbus/frame.h"
+#include "simbase.h"
+#include "simbase_answers.h"
+
+/* Receive ring and frame buffer: the reference base's 512-byte request limit. */
+#define BASE_GLUE_RX_RING_SIZE 1024u
+#define BASE_GLUE_FRAME_BUFFER_SIZE 512u
+
+typedef struct {
+    uint32_t watchdog_ms;         /* motor watchdog period; 0: the stack's default (1000 ms) */
+    bool watchdog_off;            /* no motor watchdog at all */
+    uint32_t time_scale_percent;  /* simulated time per real time; 0 means 100 (real time) */
+    bool sdk2020_sizes;           /* CONNECT 39 and deadreckon 17 bytes instead of 28 and 13 */
+    uint16_t hardware_version;    /* CONNECT_BASE hardware_version: tells the hosts apart */
+    simbase_config_t sim;         /* zero fields: simbase defaults */
+    ctrlbus_write_fn write;       /* where answers go (required) */
+    void *write_context;
+    void (*reboot)(void *context); /* BASE_CMD REBOOT after its OK answer; NULL: unsupported */
+    void *reboot_context;
+} base_glue_options_t;
+
+/* Caller-owned (static in both hosts); fields are private to base_glue.c. */
+typedef struct {
+    /* The base stack instance and the buffers it is given go here (the stack's receive ring of
+     * BASE_GLUE_RX_RING_SIZE bytes and its frame buffer of BASE_GLUE_FRAME_BUFFER_SIZE bytes). */
+    uint8_t rx_ring[BASE_GLUE_RX_RING_SIZE];
+    uint8_t frame_buffer[BASE_GLUE_FRAME_BUFFER_SIZE];
+    simbase_t sim;
+    simbase_identity_t identity;
+    base_glue_options_t options;
+    uint32_t boot_ms;           /* for the 2020 SDK's deadreckon timestamp */
+    uint32_t last_poll_ms;      /* the simulation has been stepped up to here */
+    uint32_t sim_remainder;     /* scaled time not yet stepped, in 1/100 ms */
+    uint8_t probes[SIMBASE_PROBE_COUNT]; /* GET_CHARGER_DATA answer storage */
+} base_glue_t;
+
+/* Start the stack and the simulation at time now_ms. Returns 0, or a negative CTRLBUS_ERR_* code
+ * for bad options (no write callback). Main loop only. */
+int32_t base_glue_init(base_glue_t *glue, const base_glue_options_t *options, uint32_t now_ms);
+
+/* Hand received bytes to the stack's receive ring. ISR-safe (the UART interrupt calls it) as long
+ * as only one context feeds; bytes that find the ring full are dropped and counted by the stack.
+ * Cost: O(size). */
+void base_glue_feed(base_glue_t *glue, const uint8_t *data, size_t size);
+
+/* Parse and answer what was fed, run the watchdog and health checks, and step the simulation up
+ * to now_ms. Main loop only. Cost: O(bytes fed since the last call) plus the simulation steps. */
+void base_glue_poll(base_glue_t *glue, uint32_t now_ms);
+
+#endif

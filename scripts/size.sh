@@ -1,0 +1,129 @@
+#!/usr/bin/env bash
+# Footprint of the ctrlbus C library on Cortex-M (called by `make size`).
+#
+# For cortex-m0plus, cortex-m3 and cortex-m4 it compiles every c/src/*.c with arm-none-eabi-gcc
+# -Os -ffunction-sections -fdata-sections and prints .text/.data/.bss:
+#   - per layer, linked with --gc-sections from the functions its public header declares (so only
+#     what a firmware using that layer pays for; libgcc included, libc's memcpy/memset not);
+#   - for every object file as compiled (an upper bound: nothing dropped yet).
+# Then the sizes of the state structs on a 32-bit target, read from a compiled probe.
+#
+#   scripts/size.sh            all three CPUs
+#   CPUS="cortex-m3" scripts/size.sh
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+CROSS=${CROSS:-arm-none-eabi-}
+CC="${CROSS}gcc"
+SIZE="${CROSS}size"
+NM="${CROSS}nm"
+CPUS=${CPUS:-"cortex-m0plus cortex-m3 cortex-m4"}
+CFLAGS=(-std=c99 -Os -ffunction-sections -fdata-sections -Wall -Wextra -Werror -Ic/include)
+
+if ! command -v "$CC" >/dev/null; then
+  echo "size.sh: $CC not found; scripts/setup.sh installs it (apt package gcc-arm-none-eabi)" >&2
+  exit 2
+fi
+shopt -s nullglob
+sources=(c/src/*.c)
+if ((${#sources[@]} == 0)); then
+  echo "size.sh: no C library sources in c/src yet" >&2
+  exit 2
+fi
+
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+
+# The functions a public header declares: `name(` at the start of a declaration.
+declared_functions() {
+  grep -hoE '^[a-z_][a-z0-9_ *]*[ *](ctrlbus_[a-z0-9_]+)\(' "$1" | grep -oE 'ctrlbus_[a-z0-9_]+\($' | tr -d '('
+}
+
+# .text .data .bss of a linked or object file, as three numbers.
+sections() {
+  "$SIZE" -B "$1" | awk 'NR == 2 { print $1, $2, $3 }'
+}
+
+# Layers: label, header. A layer whose header is missing is reported as pending.
+layers=(
+  "frame layer (frame.h)|c/include/ctrlbus/frame.h"
+  "messages (messages.h)|c/include/ctrlbus/messages.h"
+  "base stack (base.h)|c/include/ctrlbus/base.h"
+)
+
+echo "ctrlbus footprint: $("$CC" --version | head -1)"
+echo "flags: -Os -ffunction-sections -fdata-sections, linked with --gc-sections (libgcc in, libc out)"
+echo "a layer counts every function its header declares plus what they use from the layers below"
+echo
+
+for cpu in $CPUS; do
+  objdir="$work/$cpu"
+  mkdir -p "$objdir"
+  objects=()
+  for src in "${sources[@]}"; do
+    obj="$objdir/$(basename "${src%.c}").o"
+    "$CC" -mcpu="$cpu" -mthumb "${CFLAGS[@]}" -c "$src" -o "$obj"
+    objects+=("$obj")
+  done
+
+  # Every function the objects define: a layer is measured from the declared ones among them.
+  defined=$("$NM" --defined-only "${objects[@]}" | awk '$2 == "T" { print $3 }' | sort -u)
+  printf '%-14s %-34s %7s %6s %6s\n' "$cpu" "what" ".text" ".data" ".bss"
+  for layer in "${layers[@]}"; do
+    label=${layer%%|*}
+    header=${layer#*|}
+    if [ ! -f "$header" ]; then
+      printf '%-14s %-34s %s\n' "" "$label" "pending: $header not written yet"
+      continue
+    fi
+    declared=$(declared_functions "$header" | sort -u)
+    roots=$(comm -12 <(echo "$declared") <(echo "$defined"))
+    missing=$(comm -23 <(echo "$declared") <(echo "$defined") | grep -c . || true)
+    if [ -z "$roots" ]; then
+      printf '%-14s %-34s %s\n' "" "$label" "pending: nothing that $header declares is implemented yet"
+      continue
+    fi
+    keep=()
+    for fn in $roots; do keep+=("-Wl,--undefined=$fn"); done
+    first=$(echo "$roots" | head -1)
+    out="$objdir/$(basename "$header" .h).elf"
+    "$CC" -mcpu="$cpu" -mthumb -nostdlib -Wl,--gc-sections -Wl,--entry="$first" \
+      -Wl,--unresolved-symbols=ignore-all "${keep[@]}" -o "$out" "${objects[@]}" -lgcc
+    read -r text data bss < <(sections "$out")
+    note=""
+    if ((missing > 0)); then note="  ($missing declared functions not implemented yet)"; fi
+    printf '%-14s %-34s %7s %6s %6s%s\n' "" "$label" "$text" "$data" "$bss" "$note"
+  done
+  total_text=0 total_data=0 total_bss=0
+  for obj in "${objects[@]}"; do
+    read -r text data bss < <(sections "$obj")
+    printf '%-14s %-34s %7s %6s %6s\n' "" "  object $(basename "${obj%.o}").c (unlinked)" "$text" "$data" "$bss"
+    total_text=$((total_text + text)) total_data=$((total_data + data)) total_bss=$((total_bss + bss))
+  done
+  printf '%-14s %-34s %7s %6s %6s\n' "" "  all objects (unlinked)" "$total_text" "$total_data" "$total_bss"
+  echo
+done
+
+# Struct sizes: each probe is a const array as long as the struct; nm reports its size.
+probe_struct() { # header type
+  local header=$1 type=$2 name
+  name="sizeof_${type}"
+  printf '#include "%s"\nconst unsigned char %s[sizeof(%s)] = {0};\n' "$header" "$name" "$type" >"$work/probe.c"
+  if ! "$CC" -mcpu=cortex-m3 -mthumb "${CFLAGS[@]}" -Ic/include -c "$work/probe.c" -o "$work/probe.o" 2>"$work/probe.err"; then
+    echo "error: $(head -1 "$work/probe.err")"
+    return
+  fi
+  echo $((16#$("$NM" -S "$work/probe.o" | awk -v n="$name" '$4 == n { print $2 }')))
+}
+
+echo "state structs on a 32-bit target (bytes; caller-owned buffers not included):"
+printf '  %-24s %s\n' "ctrlbus_decoder_t" "$(probe_struct ctrlbus/frame.h ctrlbus_decoder_t) (+ the receive buffer)"
+printf '  %-24s %s\n' "ctrlbus_sink_t" "$(probe_struct ctrlbus/frame.h ctrlbus_sink_t)"
+BASE_STRUCT=${BASE_STRUCT:-ctrlbus_base_t}
+if [ -f c/include/ctrlbus/base.h ]; then
+  printf '  %-24s %s\n' "$BASE_STRUCT" "$(probe_struct ctrlbus/base.h "$BASE_STRUCT") (goal: <= 64 besides the receive buffer)"
+else
+  printf '  %-24s %s\n' "$BASE_STRUCT" "pending: c/include/ctrlbus/base.h not written yet"
+fi
+echo
+echo "goals (issue 3): base stack <= 2048 bytes .text on cortex-m0plus, <= 64 bytes of instance state, no transmit buffer"
