@@ -34,6 +34,8 @@ c-test-asan: setup
 lint: setup
 	@cd python && ../$(VENV)/bin/ruff check src tests && ../$(VENV)/bin/ruff format --check src tests
 	@cd python && ../$(VENV)/bin/mypy src tests
+	@$(VENV)/bin/ruff check --config python/pyproject.toml bench && $(VENV)/bin/ruff format --config python/pyproject.toml --check bench
+	@cd bench && MYPYPATH=../python/src ../$(VENV)/bin/mypy --config-file ../python/pyproject.toml --explicit-package-bases .
 
 # Python tests run against the C builds too (host base, firmware), so build those first.
 py-test: c-build firmware

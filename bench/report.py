@@ -1,0 +1,208 @@
+"""Publish benchmark results: PNG plots (matplotlib, Agg) and the generated parts of docs/performance.md.
+
+docs/performance.md is hand-written prose with generated blocks. Each block sits between
+
+    <!-- bench:NAME:begin -->
+    ...
+    <!-- bench:NAME:end -->
+
+and only what is between the markers is rewritten, so the prose around them stays. NAME is a
+benchmark name (its table), or `summary` (one line per goal).
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+from common import FAILED, PENDING, BenchError
+
+TABLE_HEADER = ["Measure", "Goal", "ctrlbus", "Peer, same run", "Ratio", "Goal met"]
+
+
+def _bar_chart(
+    path: Path,
+    title: str,
+    ylabel: str,
+    groups: list[str],
+    series: list[tuple[str, list[float | None]]],
+    ymin: float | None = None,
+) -> Path:
+    fig, ax = plt.subplots(figsize=(7.5, 4.4), dpi=110)
+    width = 0.8 / max(1, len(series))
+    for i, (label, values) in enumerate(series):
+        xs = [g + (i - (len(series) - 1) / 2) * width for g in range(len(groups))]
+        heights = [v if v is not None else (ymin or 0.0) for v in values]
+        bars = ax.bar(xs, heights, width, label=label)
+        for bar, value in zip(bars, values, strict=True):
+            text = "pending" if value is None else f"{value:,.4g}"
+            ax.annotate(
+                text,
+                (bar.get_x() + bar.get_width() / 2, bar.get_height()),
+                ha="center",
+                va="bottom",
+                fontsize=7,
+                xytext=(0, 2),
+                textcoords="offset points",
+            )
+    ax.set_xticks(range(len(groups)), groups)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=10)
+    if ymin is not None:
+        top = max([v for _, values in series for v in values if v is not None] or [ymin + 1.0])
+        ax.set_ylim(ymin, top + (top - ymin) * 0.12)
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2, frameon=False)
+    ax.margins(y=0.12)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
+def _plot_c_parser_cost(result: dict[str, Any], img_dir: Path) -> Path:
+    f = result["figures"]
+    variants = ["clean", "noisy"]
+    series: list[tuple[str, list[float | None]]] = [
+        ("MAVLink mavlink_parse_char", [f.get(f"{v}_mavlink_parse_char_ipb") for v in variants]),
+        (
+            "MAVLink mavlink_frame_char_buffer",
+            [f.get(f"{v}_mavlink_frame_char_buffer_ipb") for v in variants],
+        ),
+        ("ctrlbus, byte by byte", [f.get(f"{v}_ctrlbus_bytes_ipb") for v in variants]),
+        ("ctrlbus, in chunks", [f.get(f"{v}_ctrlbus_chunks_ipb") for v in variants]),
+    ]
+    return _bar_chart(
+        img_dir / "bench-c-parser-cost.png",
+        "C parser: instructions per byte (callgrind, gcc -O2)",
+        "instructions / byte",
+        ["clean capture", "noisy capture"],
+        series,
+    )
+
+
+def _plot_python_throughput(result: dict[str, Any], img_dir: Path) -> Path:
+    f = result["figures"]
+    series: list[tuple[str, list[float | None]]] = [
+        ("pymavlink parse_buffer", [f.get("pymavlink_mb_per_s")]),
+        ("ctrlbus.frame.StreamDecoder", [f.get("ctrlbus_mb_per_s")]),
+    ]
+    return _bar_chart(
+        img_dir / "bench-python-throughput.png",
+        "Python decoders: throughput",
+        "MB/s",
+        [f"{f.get('mavlink_stream_bytes', 0) / 1e6:.1f} MB stream"],
+        series,
+    )
+
+
+def _plot_garbage_recovery(result: dict[str, Any], img_dir: Path) -> Path:
+    f = result["figures"]
+    scenarios = ["bursts", "bursts_ber"]
+    series: list[tuple[str, list[float | None]]] = [
+        ("reference receiver model", [f.get(f"{s}_reference_model_recovered_pct") for s in scenarios]),
+        ("ctrlbus decoder", [f.get(f"{s}_ctrlbus_recovered_pct") for s in scenarios]),
+    ]
+    return _bar_chart(
+        img_dir / "bench-garbage-recovery.png",
+        "Valid frames recovered after garbage bursts (axis zoomed)",
+        "% of valid frames",
+        ["garbage bursts", "bursts + BER 1e-4"],
+        series,
+        # Zoomed in: the difference is in the last per cent.
+        ymin=max(0.0, min([v for _, vs in series for v in vs if v is not None] or [100.0]) - 1.0),
+    )
+
+
+PLOTTERS = {
+    "c_parser_cost": _plot_c_parser_cost,
+    "python_throughput": _plot_python_throughput,
+    "garbage_recovery": _plot_garbage_recovery,
+}
+
+
+def render_plots(results: list[dict[str, Any]], img_dir: Path) -> dict[str, Path]:
+    """One PNG per benchmark that has figures; returns them by benchmark name."""
+    plots: dict[str, Path] = {}
+    for result in results:
+        plotter = PLOTTERS.get(result["name"])
+        if plotter is not None and result["status"] not in (PENDING, FAILED):
+            plots[result["name"]] = plotter(result, img_dir)
+    return plots
+
+
+def _table(rows: list[list[str]]) -> str:
+    lines = ["| " + " | ".join(TABLE_HEADER) + " |", "|" + "---|" * len(TABLE_HEADER)]
+    lines += ["| " + " | ".join(cell.replace("|", "\\|") for cell in row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def _provenance(result: dict[str, Any]) -> str:
+    git = result["git"]
+    commit = git["commit"][:12] + (" with uncommitted changes" if git["dirty"] else "")
+    machine = result["machine"]
+    return (
+        f"Measured {result['when']} by `{result['command']}` on {machine['cpu']} ({machine['cores']} cores), "
+        f"{machine['gcc']}, {machine['valgrind']}, Python {machine['python']}, "
+        f"pymavlink {machine['pymavlink']}; commit {commit}. "
+        f"Figures and exact commands: `bench/results/{result['name']}.json`."
+    )
+
+
+def render_block(result: dict[str, Any], plot: Path | None, doc_dir: Path) -> str:
+    parts = [f"**{result['title']}.** Goal: {result['goal']}.", ""]
+    if result["status"] == FAILED:
+        parts.append(f"Last run failed: {result['details'].get('error', 'unknown error')}")
+    else:
+        parts.append(_table(result["table"]))
+    for reason in result["pending"]:
+        parts += ["", f"Pending: {reason}."]
+    if plot is not None:
+        rel = Path("img") / plot.name if plot.parent.name == "img" else plot
+        parts += ["", f"![{result['title']}]({rel.as_posix()})"]
+    parts += ["", _provenance(result)]
+    return "\n".join(parts)
+
+
+def render_summary(results: list[dict[str, Any]]) -> str:
+    lines = ["| Benchmark | Goal | Status | Goal met |", "|---|---|---|---|"]
+    for result in results:
+        mets = [row[-1] for row in result["table"] if row]
+        met = (
+            "pending"
+            if not mets or "pending" in mets
+            else ("yes" if all(m == "yes" for m in mets) else "**no**")
+        )
+        lines.append(f"| {result['title']} | {result['goal']} | {result['status']} | {met} |")
+    return "\n".join(lines)
+
+
+def _marker(name: str, edge: str) -> str:
+    return f"<!-- bench:{name}:{edge} -->"
+
+
+def replace_block(text: str, name: str, body: str) -> str:
+    begin, end = _marker(name, "begin"), _marker(name, "end")
+    pattern = re.compile(re.escape(begin) + r".*?" + re.escape(end), re.DOTALL)
+    if not pattern.search(text):
+        raise BenchError(f"docs/performance.md has no {begin} ... {end} block")
+    return pattern.sub(lambda _: f"{begin}\n{body}\n{end}", text, count=1)
+
+
+def update_performance_md(
+    source: Path, target: Path, results: list[dict[str, Any]], plots: dict[str, Path]
+) -> None:
+    """Rewrite the generated blocks of `source` from the results and write it to `target`."""
+    text = source.read_text()
+    for result in results:
+        text = replace_block(
+            text, result["name"], render_block(result, plots.get(result["name"]), target.parent)
+        )
+    if results:
+        text = replace_block(text, "summary", render_summary(results))
+    target.write_text(text)

@@ -1,0 +1,209 @@
+"""The benchmarks cannot rot: a smoke run of every one (bench/run.py --smoke) gives sane results.
+
+No timing is asserted here (speed goals are checked and published by `make bench`); these tests
+check that every benchmark ran or says why not, that its figures are positive and its ratios
+computed, and that the results render into the docs. Also: the reference receiver model that
+the recovery comparison rests on behaves as control-bus.md §4 describes.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+RUN = REPO / "bench" / "run.py"
+
+BENCHMARKS = {
+    "c_parser_cost",
+    "python_throughput",
+    "garbage_recovery",
+    "base_exchange",
+    "footprint",
+    "end_to_end",
+    "link_efficiency",
+}
+RAN = {"measured", "partial"}  # partial: the peer's side measured, ours pending
+
+
+@pytest.fixture(scope="module")
+def smoke(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, dict[str, Any]]]:
+    out = tmp_path_factory.mktemp("bench-smoke")
+    proc = subprocess.run(
+        [sys.executable, str(RUN), "--smoke", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    results = {path.stem: json.loads(path.read_text()) for path in out.glob("*.json")}
+    return out, results
+
+
+def test_every_benchmark_reports(smoke: tuple[Path, dict[str, dict[str, Any]]]) -> None:
+    _, results = smoke
+    assert set(results) == BENCHMARKS
+    for name, result in results.items():
+        assert result["name"] == name
+        assert result["mode"] == "smoke"
+        assert result["status"] in RAN | {"pending"}, (name, result["status"], result["details"])
+        assert result["git"]["commit"]
+        assert result["machine"]["cpu"]
+        if result["status"] == "pending":
+            assert result["pending"] and all(reason.strip() for reason in result["pending"])
+            assert result["figures"] == {}
+        else:
+            assert all(isinstance(v, int | float) and v >= 0 for v in result["figures"].values()), name
+        if result["status"] == "partial":
+            assert result["pending"], name
+
+
+def test_c_parser_cost_figures(smoke: tuple[Path, dict[str, dict[str, Any]]]) -> None:
+    result = smoke[1]["c_parser_cost"]
+    assert result["status"] in RAN
+    f = result["figures"]
+    assert f["mavlink_messages"] > 0 and f["ctrlbus_frames"] > 0
+    # The peer stream is the same size as ours, within one MAVLink frame.
+    assert 0 <= f["ctrlbus_stream_bytes"] - f["mavlink_stream_bytes"] < 300
+    for variant in ("clean", "noisy"):
+        for mode in ("parse_char", "frame_char_buffer"):
+            assert f[f"{variant}_mavlink_{mode}_ipb"] > 1.0
+    commands = "\n".join(result["tool_commands"])
+    assert "valgrind --tool=callgrind" in commands and "pymavlink.tools.mavgen --lang=C" in commands
+    reports = result["details"]["harness_reports"]
+    assert reports["clean"]["mavlink_parse_char"]["messages"] == f["mavlink_messages"]
+    assert reports["noisy"]["mavlink_parse_char"]["messages"] < f["mavlink_messages"]
+    if result["status"] == "measured":
+        for variant in ("clean", "noisy"):
+            for mode in ("bytes", "chunks"):
+                ours = f[f"{variant}_ctrlbus_{mode}_ipb"]
+                assert ours > 0
+                expected = ours / f[f"{variant}_mavlink_parse_char_ipb"]
+                assert f[f"{variant}_ratio_{mode}_vs_parse_char"] == pytest.approx(expected, rel=1e-2)
+        assert reports["clean"]["ctrlbus_bytes"]["frames"] == f["ctrlbus_frames"]
+        assert reports["clean"]["ctrlbus_chunks"]["frames"] == f["ctrlbus_frames"]
+
+
+def test_python_throughput_figures(smoke: tuple[Path, dict[str, dict[str, Any]]]) -> None:
+    result = smoke[1]["python_throughput"]
+    assert result["status"] in RAN
+    f = result["figures"]
+    assert f["pymavlink_mb_per_s"] > 0 and f["mavlink_messages"] > 0
+    if result["status"] == "measured":
+        assert f["ctrlbus_mb_per_s"] > 0 and f["ctrlbus_frames"] > 0
+        assert f["ratio"] == pytest.approx(f["ctrlbus_mb_per_s"] / f["pymavlink_mb_per_s"], rel=1e-2)
+
+
+def test_garbage_recovery_figures(smoke: tuple[Path, dict[str, dict[str, Any]]]) -> None:
+    result = smoke[1]["garbage_recovery"]
+    assert result["status"] in RAN
+    f = result["figures"]
+    for scenario in ("bursts", "bursts_ber"):
+        assert f[f"{scenario}_bursts"] > 0
+        assert 0 < f[f"{scenario}_intact_frames"] <= f["frames_sent"]
+        assert 0 < f[f"{scenario}_reference_model_recovered_pct"] <= 100
+        if result["status"] == "measured":
+            assert 0 < f[f"{scenario}_ctrlbus_recovered_pct"] <= 100
+            assert f[f"{scenario}_ctrlbus_false_accepts"] >= 0
+    assert f["bursts_bit_errors"] == 0 and f["bursts_ber_bit_errors"] > 0
+
+
+def test_results_render_into_the_docs(smoke: tuple[Path, dict[str, dict[str, Any]]]) -> None:
+    out, results = smoke
+    doc = (out / "performance.md").read_text()
+    for name in BENCHMARKS | {"summary"}:
+        begin, end = f"<!-- bench:{name}:begin -->", f"<!-- bench:{name}:end -->"
+        block = doc.split(begin, 1)[1].split(end, 1)[0]
+        assert "(generated by `make bench`)" not in block, name
+        if name in results and results[name]["status"] in RAN:
+            assert "| Measure |" in block and results[name]["goal"] in block
+    for png in ("bench-c-parser-cost.png", "bench-python-throughput.png", "bench-garbage-recovery.png"):
+        assert (out / "img" / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_recorded_pcap_replaces_the_synthetic_session(tmp_path: Path) -> None:
+    from ctrlbus.capture import CaptureWriter, Direction
+    from ctrlbus.frame import encode
+
+    requests = [encode(0xF8, bytes([0x30])), encode(0xF8, bytes([0x41]) + bytes(range(12)))]
+    answers = [encode(0x02, bytes([80, 3]), long=True), encode(0x02, bytes(13), long=True)]
+    with CaptureWriter.create(tmp_path / "session.pcap") as writer:
+        for k in range(50):
+            for request, answer in zip(requests, answers, strict=True):
+                # Chunks split inside frames, as a serial reader delivers them.
+                writer.write(Direction.CORE_TO_BASE, request[:3], k * 0.1)
+                writer.write(Direction.CORE_TO_BASE, request[3:], k * 0.1 + 0.001)
+                writer.write(Direction.BASE_TO_CORE, answer, k * 0.1 + 0.003)
+    out = tmp_path / "out"
+    proc = subprocess.run(
+        [
+            sys.executable,
+            str(RUN),
+            "--smoke",
+            "--out",
+            str(out),
+            "--only",
+            "python_throughput",
+            "--capture",
+            str(tmp_path / "session.pcap"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    result = json.loads((out / "python_throughput.json").read_text())
+    recording_bytes = 50 * sum(len(frame) for frame in requests + answers)
+    copies = result["figures"]["ctrlbus_stream_bytes"] // recording_bytes
+    assert copies >= 1 and result["figures"]["ctrlbus_stream_bytes"] == copies * recording_bytes
+    if result["status"] == "measured":
+        assert result["figures"]["ctrlbus_frames"] == copies * 200
+
+
+def _reference_model() -> Any:
+    spec = importlib.util.spec_from_file_location("bench_refmodel", REPO / "bench" / "refmodel.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up there
+    spec.loader.exec_module(module)
+    return module
+
+
+STATUS_REQUEST = bytes.fromhex("10 02 F8 30 DA")
+STATUS_ANSWER = bytes.fromhex("50 03 00 02 50 03 02")
+
+
+def test_reference_model_delivers_clean_frames_split_anywhere() -> None:
+    model = _reference_model().ReferenceModelDecoder()
+    stream = b"\x00\x33" + STATUS_REQUEST + STATUS_ANSWER
+    frames = [frame for byte in stream for frame in model.feed(bytes([byte]))]
+    assert frames == [STATUS_REQUEST, STATUS_ANSWER]
+    assert model.counters.bytes_discarded == 2
+
+
+def test_reference_model_false_flag_swallows_the_next_frame() -> None:
+    # A false 0x10 with length 5 takes the real request's 5 bytes as its body and checksum and
+    # fails; with no backtracking the request is lost, the answer after it still arrives.
+    model = _reference_model().ReferenceModelDecoder()
+    frames = model.feed(b"\x10\x04" + STATUS_REQUEST + STATUS_ANSWER)
+    assert frames == [STATUS_ANSWER]
+    assert model.counters.checksum_errors == 1
+
+
+def test_reference_model_waits_for_ever_and_resets_on_oversize() -> None:
+    module = _reference_model()
+    model = module.ReferenceModelDecoder()
+    # No timeout: a bogus standard length of 200 keeps swallowing until 200 + 1 bytes came.
+    assert model.feed(b"\x10\xc8" + STATUS_REQUEST * 40) == []
+    # A long LEN above the 512-byte receive buffer resets right after the length bytes.
+    model = module.ReferenceModelDecoder()
+    assert model.feed(b"\x50\xff\x01" + STATUS_REQUEST) == [STATUS_REQUEST]
+    assert model.counters.oversize == 1
