@@ -1,0 +1,539 @@
+/* ctrlbus messages: typed requests and answers of the Control Bus.
+ *
+ * Every message is a struct whose field names are the contract's (vectors/README.md), with the
+ * unit and fixed-point format in the name (_q8 / _q16: the wire integer is the value times 2^8 /
+ * 2^16). Encoding writes the fields one by one into a ctrlbus_sink_t (frame.h), so the same code
+ * streams an answer to a UART or fills a buffer; decoding reads them one by one from a payload.
+ * Nothing is ever copied as a whole struct, so the layout in memory does not matter.
+ *
+ * Two levels of API:
+ * - tagged unions for dispatch: ctrlbus_request_decode() turns a received frame into a
+ *   ctrlbus_request_t (what a base switches on); ctrlbus_answer_decode() reads an answer knowing
+ *   the request it answers; ctrlbus_request_write() / ctrlbus_answer_write() write whole frames;
+ * - one put/decode pair per answer layout (ctrlbus_<name>_answer_put/_decode), for a base that
+ *   answers one request without building the (large) answer union.
+ *
+ * Values: decoding refuses what the protocol does not define (a wrong length, text that is not
+ * ASCII, a sensor_num over 8, an unknown argument value), and encoding refuses the same values
+ * with CTRLBUS_ERR_ARGUMENT, so whatever is encoded decodes again. Text fields are ASCII, NUL-padded
+ * on the wire and kept up to the first NUL when decoded.
+ *
+ * Payload sizes: a request's payload starts with its control-bus request code (and HEALTH
+ * requests with their sub-command too), and the *_REQUEST_SIZE constants include those bytes.
+ * Answer sizes are those of the OK payload.
+ *
+ * Variable-length byte fields (SYNC filler, ECHO data, the 0x21 blob, charger probes) are a
+ * pointer plus a length: a decoder points them into the payload it was given (valid as long as
+ * that payload is), an encoder reads them from wherever the caller points.
+ *
+ * Every function here is ISR-safe (it touches only its arguments) when the sink's write callback
+ * is. Decoders cost O(payload length) and never read outside payload[0..len).
+ */
+#ifndef CTRLBUS_MESSAGES_H
+#define CTRLBUS_MESSAGES_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "ctrlbus/ctrlbus.h"
+#include "ctrlbus/frame.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---- wire constants ------------------------------------------------------------------------- */
+
+/* CMD byte of requests and answers. */
+#define CTRLBUS_CMD_SYNC 0x00u
+#define CTRLBUS_CMD_ECHO 0x01u
+#define CTRLBUS_CMD_OK 0x02u
+#define CTRLBUS_CMD_ERROR 0x03u
+#define CTRLBUS_CMD_CTRL_BUS 0xF8u
+#define CTRLBUS_CMD_BASE_CMD 0xF9u
+#define CTRLBUS_CMD_INVALID 0xFFu
+
+/* Control-bus request codes: the first payload byte of a CMD 0xF8 frame. */
+#define CTRLBUS_CODE_CONNECT_BASE 0x10u
+#define CTRLBUS_CODE_GET_BASE_CONF 0x20u
+#define CTRLBUS_CODE_GET_BASE_CONF_ADV 0x21u
+#define CTRLBUS_CODE_GET_BASE_STATUS 0x30u
+#define CTRLBUS_CODE_GET_BASE_MOTOR_DATA 0x31u
+#define CTRLBUS_CODE_GET_BASE_SENSOR_DATA 0x32u
+#define CTRLBUS_CODE_GET_BASE_BUMPER_DATA 0x33u
+#define CTRLBUS_CODE_GET_CHARGER_DATA 0x34u
+#define CTRLBUS_CODE_GET_AUXILIARY_ANCHOR 0x35u
+#define CTRLBUS_CODE_SET_BASE_MOTOR 0x40u
+#define CTRLBUS_CODE_SET_V_AND_GET_DEADRECKON 0x41u
+#define CTRLBUS_CODE_POLL_BASE_CMD 0x50u
+#define CTRLBUS_CODE_POLL_BASE_ANS_CMD 0x5Fu
+#define CTRLBUS_CODE_SEND_EVENT 0x60u
+#define CTRLBUS_CODE_HEALTH_MGMT 0x90u
+
+/* HEALTH_MGMT sub-commands (second payload byte). */
+#define CTRLBUS_HEALTH_SUB_GET_HEALTH 0x01u
+#define CTRLBUS_HEALTH_SUB_GET_ERROR 0x02u
+#define CTRLBUS_HEALTH_SUB_CLR_ERROR 0x03u
+
+/* BASE_CMD sub-commands. */
+#define CTRLBUS_BASE_CMD_ENTER_DFU 0x01u
+#define CTRLBUS_BASE_CMD_REBOOT 0x02u
+
+/* CONNECT_BASE protocol_version, GET_CHARGER_DATA data_type. */
+#define CTRLBUS_PROTOCOL_VERSION 0x01u
+#define CTRLBUS_CHARGER_DATA_BEACONS 0x00u
+
+/* ERROR answer codes (u16). */
+#define CTRLBUS_WIRE_ERR_NOT_SYNCHRONISED 0x0010u  /* a byte outside any frame */
+#define CTRLBUS_WIRE_ERR_TOO_LONG 0x0020u          /* request longer than the receive buffer */
+#define CTRLBUS_WIRE_ERR_CHECKSUM 0x0040u          /* checksum mismatch */
+#define CTRLBUS_WIRE_ERR_CHECKSUM_REFERENCE 0x00C0u /* what the reference firmware sends instead */
+#define CTRLBUS_WIRE_ERR_UNSUPPORTED 0x8000u       /* unknown CMD / request / argument */
+#define CTRLBUS_WIRE_ERR_FORMAT 0x8001u            /* bad request payload */
+#define CTRLBUS_WIRE_ERR_OPERATION 0x8002u         /* failed to execute (also unknown HEALTH sub) */
+
+/* GET_BASE_STATUS power_status bits. */
+#define CTRLBUS_POWER_CHARGING 0x01u
+#define CTRLBUS_POWER_DC_CONNECTED 0x02u
+#define CTRLBUS_POWER_ON_DOCK 0x04u
+/* status bits of GET_BASE_MOTOR_DATA and SET_V_AND_GET_DEADRECKON. */
+#define CTRLBUS_MOTOR_STALL 0x02u
+#define CTRLBUS_MOTOR_TRACTION_LOST 0x04u
+/* HEALTH_GET_HEALTH flags, and the level byte (bits 31..24) of a health error code. */
+#define CTRLBUS_HEALTH_WARNING 0x01u
+#define CTRLBUS_HEALTH_ERROR 0x02u
+#define CTRLBUS_HEALTH_FATAL 0x04u
+#define CTRLBUS_HEALTH_CODE(level, component, type, index)                                     \
+    (((uint32_t)(level) << 24) | ((uint32_t)(component) << 16) | ((uint32_t)(type) << 8) |      \
+     (uint32_t)(index))
+/* POLL_BASE_CMD: the first answer byte that means "nothing pending" in the 2-byte form. */
+#define CTRLBUS_POLL_NOTHING_PENDING 0xFFu
+
+/* ---- field and payload sizes ---------------------------------------------------------------- */
+
+#define CTRLBUS_MODEL_LEN 12u                   /* CONNECT_BASE model */
+#define CTRLBUS_FIRMWARE_VERSION_SUFFIX_LEN 11u /* CONNECT_BASE firmware_version_suffix */
+#define CTRLBUS_SERIAL_WORDS 3u                 /* CONNECT_BASE serial */
+#define CTRLBUS_CONF_SLOTS 8u                   /* GET_BASE_CONF sensors / bumpers */
+#define CTRLBUS_SENSOR_CHANNELS 16u             /* GET_BASE_SENSOR_DATA distances */
+#define CTRLBUS_MOTOR_SPEEDS 4u                 /* SET_BASE_MOTOR speeds */
+#define CTRLBUS_HEALTH_MESSAGE_LEN 32u          /* HEALTH_GET_ERROR message, NUL included */
+
+/* Request payloads (CMD 0xF8: request code and sub-command included). */
+#define CTRLBUS_BASE_CMD_REQUEST_SIZE 1u
+#define CTRLBUS_PLAIN_REQUEST_SIZE 1u /* requests without argument: just the code */
+#define CTRLBUS_CONNECT_BASE_REQUEST_SIZE 2u
+#define CTRLBUS_GET_CHARGER_DATA_REQUEST_SIZE 2u
+#define CTRLBUS_SET_BASE_MOTOR_REQUEST_SIZE 17u
+#define CTRLBUS_SET_V_AND_GET_DEADRECKON_REQUEST_SIZE 13u
+#define CTRLBUS_SEND_EVENT_REQUEST_SIZE 2u
+#define CTRLBUS_HEALTH_GET_HEALTH_REQUEST_SIZE 2u
+#define CTRLBUS_HEALTH_GET_ERROR_REQUEST_SIZE 3u
+#define CTRLBUS_HEALTH_CLR_ERROR_REQUEST_SIZE 6u
+
+/* OK answer payloads. Where the reference knows two forms, both are accepted when decoding. */
+#define CTRLBUS_CONNECT_BASE_ANSWER_SIZE 28u             /* 2018 reference */
+#define CTRLBUS_CONNECT_BASE_ANSWER_SIZE_WITH_SUFFIX 39u /* 2020 SDK */
+#define CTRLBUS_GET_BASE_CONF_ANSWER_SIZE 264u
+#define CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE 2u
+#define CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE 9u
+#define CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE 64u
+#define CTRLBUS_GET_BASE_BUMPER_DATA_ANSWER_SIZE 4u /* 1..4 accepted */
+#define CTRLBUS_GET_CHARGER_DATA_ANSWER_MIN 2u      /* + probe_count */
+#define CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE 13u                /* 2018 reference */
+#define CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_WITH_TIMESTAMP 17u /* 2020 SDK */
+#define CTRLBUS_POLL_BASE_CMD_ANSWER_SIZE 2u /* or 0 (nothing pending, v4 form) */
+#define CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE 2u
+#define CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE 36u
+#define CTRLBUS_ERROR_ANSWER_SIZE 2u
+
+/* ---- requests ------------------------------------------------------------------------------- */
+
+/* Every request the protocol defines. The names are the contract's (ctrlbus_request_name()). */
+typedef enum {
+    CTRLBUS_REQ_NONE = 0, /* no request: unknown CMD or request code (after a failed decode) */
+    CTRLBUS_REQ_SYNC,
+    CTRLBUS_REQ_ECHO,
+    CTRLBUS_REQ_BASE_CMD,
+    CTRLBUS_REQ_CONNECT_BASE,
+    CTRLBUS_REQ_GET_BASE_CONF,
+    CTRLBUS_REQ_GET_BASE_CONF_ADV,
+    CTRLBUS_REQ_GET_BASE_STATUS,
+    CTRLBUS_REQ_GET_BASE_MOTOR_DATA,
+    CTRLBUS_REQ_GET_BASE_SENSOR_DATA,
+    CTRLBUS_REQ_GET_BASE_BUMPER_DATA,
+    CTRLBUS_REQ_GET_CHARGER_DATA,
+    CTRLBUS_REQ_GET_AUXILIARY_ANCHOR,
+    CTRLBUS_REQ_SET_BASE_MOTOR,
+    CTRLBUS_REQ_SET_V_AND_GET_DEADRECKON,
+    CTRLBUS_REQ_POLL_BASE_CMD,
+    CTRLBUS_REQ_POLL_BASE_ANS_CMD,
+    CTRLBUS_REQ_SEND_EVENT,
+    CTRLBUS_REQ_HEALTH_GET_HEALTH,
+    CTRLBUS_REQ_HEALTH_GET_ERROR,
+    CTRLBUS_REQ_HEALTH_CLR_ERROR,
+    /* Only ever left by a failed ctrlbus_request_decode(): HEALTH_MGMT with an unknown
+     * sub-command, which a base answers with ERROR 0x8002 instead of 0x8000. */
+    CTRLBUS_REQ_HEALTH_UNKNOWN,
+    CTRLBUS_REQ_COUNT
+} ctrlbus_req_kind_t;
+
+typedef struct {
+    const uint8_t *filler; /* any bytes, any length (NULL when filler_len is 0) */
+    size_t filler_len;
+} ctrlbus_sync_request_t;
+
+typedef struct {
+    const uint8_t *data;
+    size_t data_len;
+} ctrlbus_echo_request_t;
+
+typedef struct {
+    uint8_t subcommand; /* CTRLBUS_BASE_CMD_ENTER_DFU or _REBOOT (others: unsupported) */
+} ctrlbus_base_cmd_request_t;
+
+typedef struct {
+    uint8_t protocol_version; /* CTRLBUS_PROTOCOL_VERSION (others: unsupported, 0x8000) */
+} ctrlbus_connect_base_request_t;
+
+typedef struct {
+    uint8_t data_type; /* CTRLBUS_CHARGER_DATA_BEACONS (others: unsupported, 0x8000) */
+} ctrlbus_get_charger_data_request_t;
+
+typedef struct {
+    int32_t speeds_mm_s[CTRLBUS_MOTOR_SPEEDS]; /* left, right, ignored, ignored */
+} ctrlbus_set_base_motor_request_t;
+
+typedef struct {
+    int32_t vx_mps_q16;      /* forward, m/s Q16 */
+    int32_t vy_mps_q16;      /* left, m/s Q16 (ignored by a differential base) */
+    int32_t omega_radps_q16; /* anticlockwise, rad/s Q16 */
+} ctrlbus_set_v_and_get_deadreckon_request_t;
+
+typedef struct {
+    uint8_t event; /* any code: a base answers OK to unknown ones too */
+} ctrlbus_send_event_request_t;
+
+typedef struct {
+    uint8_t index; /* 0 .. error_count - 1 */
+} ctrlbus_health_get_error_request_t;
+
+typedef struct {
+    uint32_t error_code;
+} ctrlbus_health_clr_error_request_t;
+
+/* A request of any kind. Fields of `as` other than the one `kind` names are unspecified. */
+typedef struct {
+    ctrlbus_req_kind_t kind;
+    union {
+        ctrlbus_sync_request_t sync;
+        ctrlbus_echo_request_t echo;
+        ctrlbus_base_cmd_request_t base_cmd;
+        ctrlbus_connect_base_request_t connect_base;
+        ctrlbus_get_charger_data_request_t get_charger_data;
+        ctrlbus_set_base_motor_request_t set_base_motor;
+        ctrlbus_set_v_and_get_deadreckon_request_t set_v_and_get_deadreckon;
+        ctrlbus_send_event_request_t send_event;
+        ctrlbus_health_get_error_request_t health_get_error;
+        ctrlbus_health_clr_error_request_t health_clr_error;
+    } as;
+} ctrlbus_request_t;
+
+/* Reads a received frame (cmd and payload, as ctrlbus_decoder_next() gives them) as a request.
+ * Returns CTRLBUS_OK with *out filled in;
+ *   CTRLBUS_ERR_FORMAT when the payload length is wrong for the request (an empty CTRL_BUS payload,
+ *     or HEALTH_MGMT without a sub-command, too); out->kind then names the request if it was
+ *     recognised, else CTRLBUS_REQ_NONE;
+ *   CTRLBUS_ERR_UNSUPPORTED for an unknown CMD (answer CMDs included), an unknown control-bus
+ *     request code (out->kind = CTRLBUS_REQ_NONE), an unknown HEALTH sub-command
+ *     (out->kind = CTRLBUS_REQ_HEALTH_UNKNOWN), or a well-formed request with an argument value
+ *     the protocol does not define: CONNECT_BASE version other than 1, GET_CHARGER_DATA type
+ *     other than 0, BASE_CMD sub-command other than 1 or 2 (out->kind names the request);
+ *   (the length is checked first: a wrong length with a bad value is a FORMAT error);
+ *   CTRLBUS_ERR_ARGUMENT for a NULL out, or a NULL payload with len > 0.
+ * SYNC/ECHO/0x21-style byte fields point into payload. ctrlbus_request_error_code() gives the ERROR
+ * code a base answers a failure with. ISR-safe. Cost: O(len) at most (SYNC/ECHO: O(1)). */
+int32_t ctrlbus_request_decode(ctrlbus_request_t *out, uint8_t cmd, const uint8_t *payload,
+                               size_t len);
+
+/* The ERROR answer code for a failed ctrlbus_request_decode() (its return value and the request
+ * it left): 0x8001 for CTRLBUS_ERR_FORMAT, 0x8002 for an unknown HEALTH sub-command, 0x8000 for any
+ * other failure. ISR-safe. Cost: O(1). */
+uint16_t ctrlbus_request_error_code(const ctrlbus_request_t *request, int32_t error);
+
+/* The CMD byte a request travels in (0x00, 0x01, 0xF9, or 0xF8 for the control-bus requests), or
+ * -1 for CTRLBUS_REQ_NONE / CTRLBUS_REQ_HEALTH_UNKNOWN / an out-of-range kind. ISR-safe. O(1). */
+int32_t ctrlbus_request_cmd(ctrlbus_req_kind_t kind);
+
+/* The contract's name of a request kind ("CONNECT_BASE", "HEALTH_GET_ERROR", "SYNC", ...), or
+ * NULL for CTRLBUS_REQ_NONE, CTRLBUS_REQ_HEALTH_UNKNOWN and out-of-range kinds. ISR-safe. O(1). */
+const char *ctrlbus_request_name(ctrlbus_req_kind_t kind);
+
+/* Payload size of a request, or CTRLBUS_ERR_ARGUMENT for a kind that cannot be sent, an argument
+ * value that decoding would refuse as unsupported, or a NULL byte field with a non-zero length.
+ * ISR-safe. Cost: O(1). */
+int32_t ctrlbus_request_payload_size(const ctrlbus_request_t *request);
+
+/* Writes a whole request frame through sink. Returns the frame's size or a negative error
+ * (CTRLBUS_ERR_ARGUMENT as for ctrlbus_request_payload_size(), CTRLBUS_ERR_TOO_BIG for a SYNC/ECHO
+ * payload over a frame's limit, or the sink's errors). ISR-safe if the sink's callback is.
+ * Cost: O(payload size). */
+int32_t ctrlbus_request_write(ctrlbus_sink_t *sink, const ctrlbus_request_t *request,
+                              ctrlbus_frame_type_t type);
+
+/* Encodes a whole request frame into out[0..out_size). Returns the frame's size or a negative
+ * error (CTRLBUS_ERR_TOO_BIG when out is too small; nothing useful is left in out then).
+ * ISR-safe. Cost: O(payload size). */
+int32_t ctrlbus_request_encode(uint8_t *out, size_t out_size, const ctrlbus_request_t *request,
+                               ctrlbus_frame_type_t type);
+
+/* ---- answers -------------------------------------------------------------------------------- */
+
+/* Text fields hold the ASCII characters up to the first NUL, plus a terminating NUL. */
+typedef struct {
+    char model[CTRLBUS_MODEL_LEN + 1]; /* "ref base" */
+    uint16_t firmware_version;         /* (major << 8) | minor */
+    uint16_t hardware_version;
+    uint32_t serial[CTRLBUS_SERIAL_WORDS];
+    /* false: the 28-byte form (no suffix field on the wire, the contract's null) */
+    bool has_firmware_version_suffix;
+    char firmware_version_suffix[CTRLBUS_FIRMWARE_VERSION_SUFFIX_LEN + 1];
+} ctrlbus_connect_base_answer_t;
+
+/* Where a sensor or bumper sits: mm Q8 from the robot centre (x forward, y left, z up), angle in
+ * degrees Q8, anticlockwise, 0..360. */
+typedef struct {
+    int32_t x_mm_q8;
+    int32_t y_mm_q8;
+    int32_t z_mm_q8;
+    uint32_t angle_deg_q8;
+} ctrlbus_position_t;
+
+typedef struct {
+    uint8_t base_type; /* 0 circle, 1 square */
+    uint32_t base_radius_mm_q8;
+    uint8_t motor_type; /* 0 two-wheel differential */
+    uint8_t sensor_num; /* in use, at most 8 */
+    ctrlbus_position_t sensors[CTRLBUS_CONF_SLOTS];
+    uint8_t bumper_num; /* at most 8 */
+    ctrlbus_position_t bumpers[CTRLBUS_CONF_SLOTS];
+} ctrlbus_get_base_conf_answer_t;
+
+typedef struct {
+    const uint8_t *blob; /* opaque binary configuration, any length */
+    size_t blob_len;
+} ctrlbus_get_base_conf_adv_answer_t;
+
+typedef struct {
+    uint8_t battery_percent;
+    uint8_t power_status; /* CTRLBUS_POWER_* bits */
+} ctrlbus_get_base_status_answer_t;
+
+typedef struct {
+    int32_t left_distance_mm;
+    int32_t right_distance_mm;
+    uint8_t status; /* CTRLBUS_MOTOR_* bits */
+} ctrlbus_get_base_motor_data_answer_t;
+
+typedef struct {
+    uint32_t distances_mm_q16[CTRLBUS_SENSOR_CHANNELS];
+} ctrlbus_get_base_sensor_data_answer_t;
+
+typedef struct {
+    uint32_t bitmap;      /* active low: 0 = triggered; zero-padded from a short answer */
+    uint8_t payload_size; /* 1..4 bytes on the wire (4 is current, 1 the 2018 firmware) */
+} ctrlbus_get_base_bumper_data_answer_t;
+
+typedef struct {
+    uint8_t beacon_count;
+    uint8_t probe_count;
+    const uint8_t *probes; /* probe_count bitmaps (left, main, right for 3 probes) */
+} ctrlbus_get_charger_data_answer_t;
+
+typedef struct {
+    int32_t dx_mm_q16;
+    int32_t dy_mm_q16;
+    int32_t dtheta_deg_q16; /* degrees, anticlockwise positive */
+    uint8_t status;         /* CTRLBUS_MOTOR_* bits */
+    bool has_timestamp_ms;  /* false: the 13-byte form (the contract's null) */
+    uint32_t timestamp_ms;
+} ctrlbus_set_v_and_get_deadreckon_answer_t;
+
+/* The three forms: payload_size 0 (nothing pending, v4), payload_size 2 with has_command false
+ * (nothing pending, 0xFF form; pad is the second byte), payload_size 2 with has_command true. */
+typedef struct {
+    bool has_command; /* false: the contract's null */
+    uint8_t command;  /* an external command code, never 0xFF */
+    uint8_t payload_size; /* 0 or 2 */
+    uint8_t pad;          /* the don't-care second byte; 0 when payload_size is 0 */
+} ctrlbus_poll_base_cmd_answer_t;
+
+typedef struct {
+    uint8_t flags; /* CTRLBUS_HEALTH_WARNING / _ERROR / _FATAL */
+    uint8_t error_count;
+} ctrlbus_health_get_health_answer_t;
+
+typedef struct {
+    uint32_t error_code; /* CTRLBUS_HEALTH_CODE(level, component, type, index) */
+    /* At most 31 characters: the 32-byte wire field always keeps a NUL (decoding a field
+     * without one is a FORMAT error). */
+    char message[CTRLBUS_HEALTH_MESSAGE_LEN];
+} ctrlbus_health_get_error_answer_t;
+
+typedef struct {
+    uint16_t error_code; /* CTRLBUS_WIRE_ERR_* */
+} ctrlbus_error_answer_t;
+
+/* Per-layout codecs.
+ * - _size() (for layouts whose size or values can vary) returns the payload size, or
+ *   CTRLBUS_ERR_ARGUMENT for a struct that cannot be encoded. Call it before ctrlbus_sink_begin():
+ *   then a bad struct is refused before any byte goes out.
+ * - put writes the OK payload's fields into a frame begun with that size (or the constant above).
+ *   It re-checks the struct; a bad one makes ctrlbus_sink_end() return CTRLBUS_ERR_ARGUMENT, but
+ *   on a streaming sink the header is already out then.
+ * - decode reads payload[0..len) into *out (unspecified on failure) and returns CTRLBUS_OK,
+ *   CTRLBUS_ERR_FORMAT for a length or value the layout does not allow, or CTRLBUS_ERR_ARGUMENT
+ *   for NULL pointers.
+ * ISR-safe. Cost: O(size). */
+void ctrlbus_connect_base_answer_put(ctrlbus_sink_t *sink, const ctrlbus_connect_base_answer_t *a);
+/* size/put fail (ARGUMENT) for text that is not ASCII. */
+int32_t ctrlbus_connect_base_answer_size(const ctrlbus_connect_base_answer_t *a); /* 28 or 39 */
+int32_t ctrlbus_connect_base_answer_decode(ctrlbus_connect_base_answer_t *out,
+                                           const uint8_t *payload, size_t len);
+
+void ctrlbus_get_base_conf_answer_put(ctrlbus_sink_t *sink, const ctrlbus_get_base_conf_answer_t *a);
+int32_t ctrlbus_get_base_conf_answer_size(const ctrlbus_get_base_conf_answer_t *a); /* 264 */
+int32_t ctrlbus_get_base_conf_answer_decode(ctrlbus_get_base_conf_answer_t *out,
+                                            const uint8_t *payload, size_t len);
+
+void ctrlbus_get_base_conf_adv_answer_put(ctrlbus_sink_t *sink,
+                                          const ctrlbus_get_base_conf_adv_answer_t *a);
+int32_t ctrlbus_get_base_conf_adv_answer_decode(ctrlbus_get_base_conf_adv_answer_t *out,
+                                                const uint8_t *payload, size_t len);
+
+void ctrlbus_get_base_status_answer_put(ctrlbus_sink_t *sink,
+                                        const ctrlbus_get_base_status_answer_t *a);
+int32_t ctrlbus_get_base_status_answer_decode(ctrlbus_get_base_status_answer_t *out,
+                                              const uint8_t *payload, size_t len);
+
+void ctrlbus_get_base_motor_data_answer_put(ctrlbus_sink_t *sink,
+                                            const ctrlbus_get_base_motor_data_answer_t *a);
+int32_t ctrlbus_get_base_motor_data_answer_decode(ctrlbus_get_base_motor_data_answer_t *out,
+                                                  const uint8_t *payload, size_t len);
+
+void ctrlbus_get_base_sensor_data_answer_put(ctrlbus_sink_t *sink,
+                                             const ctrlbus_get_base_sensor_data_answer_t *a);
+int32_t ctrlbus_get_base_sensor_data_answer_decode(ctrlbus_get_base_sensor_data_answer_t *out,
+                                                   const uint8_t *payload, size_t len);
+
+/* put fails (ARGUMENT) for a payload_size outside 1..4 or bitmap bits that do not fit in it. */
+void ctrlbus_get_base_bumper_data_answer_put(ctrlbus_sink_t *sink,
+                                             const ctrlbus_get_base_bumper_data_answer_t *a);
+int32_t ctrlbus_get_base_bumper_data_answer_size(const ctrlbus_get_base_bumper_data_answer_t *a);
+int32_t ctrlbus_get_base_bumper_data_answer_decode(ctrlbus_get_base_bumper_data_answer_t *out,
+                                                   const uint8_t *payload, size_t len);
+
+/* decode: FORMAT unless len == 2 + probe_count. */
+void ctrlbus_get_charger_data_answer_put(ctrlbus_sink_t *sink,
+                                         const ctrlbus_get_charger_data_answer_t *a);
+int32_t ctrlbus_get_charger_data_answer_size(const ctrlbus_get_charger_data_answer_t *a);
+int32_t ctrlbus_get_charger_data_answer_decode(ctrlbus_get_charger_data_answer_t *out,
+                                               const uint8_t *payload, size_t len);
+
+void ctrlbus_set_v_and_get_deadreckon_answer_put(
+    ctrlbus_sink_t *sink, const ctrlbus_set_v_and_get_deadreckon_answer_t *a);
+int32_t ctrlbus_set_v_and_get_deadreckon_answer_size(
+    const ctrlbus_set_v_and_get_deadreckon_answer_t *a); /* 13 or 17 */
+int32_t ctrlbus_set_v_and_get_deadreckon_answer_decode(
+    ctrlbus_set_v_and_get_deadreckon_answer_t *out, const uint8_t *payload, size_t len);
+
+/* put/size fail (ARGUMENT) for a payload_size other than 0 or 2, a command with payload_size 0,
+ * a pad with payload_size 0, or has_command with command 0xFF. */
+void ctrlbus_poll_base_cmd_answer_put(ctrlbus_sink_t *sink, const ctrlbus_poll_base_cmd_answer_t *a);
+int32_t ctrlbus_poll_base_cmd_answer_size(const ctrlbus_poll_base_cmd_answer_t *a);
+int32_t ctrlbus_poll_base_cmd_answer_decode(ctrlbus_poll_base_cmd_answer_t *out,
+                                            const uint8_t *payload, size_t len);
+
+void ctrlbus_health_get_health_answer_put(ctrlbus_sink_t *sink,
+                                          const ctrlbus_health_get_health_answer_t *a);
+int32_t ctrlbus_health_get_health_answer_decode(ctrlbus_health_get_health_answer_t *out,
+                                                const uint8_t *payload, size_t len);
+
+/* size/put fail (ARGUMENT) for a message of 32 characters or more (no room for its NUL). */
+void ctrlbus_health_get_error_answer_put(ctrlbus_sink_t *sink,
+                                         const ctrlbus_health_get_error_answer_t *a);
+int32_t ctrlbus_health_get_error_answer_size(const ctrlbus_health_get_error_answer_t *a); /* 36 */
+int32_t ctrlbus_health_get_error_answer_decode(ctrlbus_health_get_error_answer_t *out,
+                                               const uint8_t *payload, size_t len);
+
+/* Writes a whole ERROR answer frame (CMD 0x03, u16 code). Returns its size (7 as a long frame) or
+ * a negative error as ctrlbus_frame_write(). ISR-safe if the sink's callback is. Cost: O(1). */
+int32_t ctrlbus_error_answer_write(ctrlbus_sink_t *sink, uint16_t error_code,
+                                   ctrlbus_frame_type_t type);
+
+/* The answer's CMD: the contract's answer names. */
+typedef enum {
+    CTRLBUS_ANSWER_OK = 0,   /* CMD 0x02: as.<request> per `to` (nothing for empty answers) */
+    CTRLBUS_ANSWER_ERROR,    /* CMD 0x03: as.error */
+    CTRLBUS_ANSWER_INVALID,  /* CMD 0xFF: empty */
+    CTRLBUS_ANSWER_SYNC,     /* CMD 0x00: as.sync, the copy of the SYNC request */
+    CTRLBUS_ANSWER_ECHO      /* CMD 0x01: as.echo, the copy of the ECHO request */
+} ctrlbus_answer_kind_t;
+
+/* An answer of any kind. `to` is the request it answers: an OK payload can only be read knowing
+ * it. Fields of `as` other than the one that kind/to select are unspecified. */
+typedef struct {
+    ctrlbus_answer_kind_t kind;
+    ctrlbus_req_kind_t to;
+    union {
+        ctrlbus_error_answer_t error;
+        ctrlbus_sync_request_t sync;
+        ctrlbus_echo_request_t echo;
+        ctrlbus_connect_base_answer_t connect_base;
+        ctrlbus_get_base_conf_answer_t get_base_conf;
+        ctrlbus_get_base_conf_adv_answer_t get_base_conf_adv;
+        ctrlbus_get_base_status_answer_t get_base_status;
+        ctrlbus_get_base_motor_data_answer_t get_base_motor_data;
+        ctrlbus_get_base_sensor_data_answer_t get_base_sensor_data;
+        ctrlbus_get_base_bumper_data_answer_t get_base_bumper_data;
+        ctrlbus_get_charger_data_answer_t get_charger_data;
+        ctrlbus_set_v_and_get_deadreckon_answer_t set_v_and_get_deadreckon;
+        ctrlbus_poll_base_cmd_answer_t poll_base_cmd;
+        ctrlbus_health_get_health_answer_t health_get_health;
+        ctrlbus_health_get_error_answer_t health_get_error;
+    } as;
+} ctrlbus_answer_t;
+
+/* Reads a received answer frame (cmd, payload) to the request kind `to`. Returns CTRLBUS_OK;
+ * CTRLBUS_ERR_FORMAT for a payload length (or value) the answer does not allow; CTRLBUS_ERR_UNSUPPORTED
+ * for an unknown answer CMD, or an OK answer to a request that has no OK layout (SYNC, ECHO,
+ * GET_AUXILIARY_ANCHOR); CTRLBUS_ERR_ARGUMENT for NULL pointers or a `to` that is not a request.
+ * Empty OK answers (SET_BASE_MOTOR, POLL_BASE_ANS_CMD, SEND_EVENT, HEALTH_CLR_ERROR, BASE_CMD)
+ * must have length 0. ISR-safe. Cost: O(len). */
+int32_t ctrlbus_answer_decode(ctrlbus_answer_t *out, ctrlbus_req_kind_t to, uint8_t cmd,
+                              const uint8_t *payload, size_t len);
+
+/* The contract's name of an answer kind: "OK", "ERROR", "INVALID", "SYNC", "ECHO" (NULL when out of
+ * range). ISR-safe. Cost: O(1). */
+const char *ctrlbus_answer_name(ctrlbus_answer_kind_t kind);
+
+/* Payload size of an answer, or CTRLBUS_ERR_ARGUMENT (inconsistent struct, or no OK layout).
+ * ISR-safe. Cost: O(1). */
+int32_t ctrlbus_answer_payload_size(const ctrlbus_answer_t *answer);
+
+/* Writes a whole answer frame through sink. Returns the frame's size or a negative error as
+ * ctrlbus_request_write(). ISR-safe if the sink's callback is. Cost: O(payload size). */
+int32_t ctrlbus_answer_write(ctrlbus_sink_t *sink, const ctrlbus_answer_t *answer,
+                             ctrlbus_frame_type_t type);
+
+/* Encodes a whole answer frame into out[0..out_size). Returns its size or a negative error.
+ * ISR-safe. Cost: O(payload size). */
+int32_t ctrlbus_answer_encode(uint8_t *out, size_t out_size, const ctrlbus_answer_t *answer,
+                              ctrlbus_frame_type_t type);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif
