@@ -3,10 +3,32 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import re
+import signal
+import sys
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+from types import FrameType
 
+from ctrlbus.errors import UsageError
 from ctrlbus.link import DEFAULT_BAUD, parse_host_port
 
-__all__ = ["DEFAULT_BAUD", "add_baud_argument", "add_port_argument", "add_serve_arguments", "parse_host_port"]
+__all__ = [
+    "DEFAULT_BAUD",
+    "add_baud_argument",
+    "add_dashboard_arguments",
+    "add_port_argument",
+    "add_serve_arguments",
+    "format_hex",
+    "hex_or_binary",
+    "parse_hex_text",
+    "parse_host_port",
+    "read_input_bytes",
+    "stop_on_signals",
+    "write_output",
+]
 
 
 def add_port_argument(
@@ -40,3 +62,124 @@ def add_serve_arguments(parser: argparse.ArgumentParser) -> None:
     )
     group.add_argument("--port", metavar="URL", help="serve on an existing port (pyserial URL)")
     add_baud_argument(parser)
+
+
+def add_dashboard_arguments(parser: argparse.ArgumentParser) -> None:
+    """Where the browser dashboard listens and its access token (read by ctrlbus.web.options)."""
+    # Imported here: ctrlbus.web.options is plain Python, but the CLI should not pull the web
+    # package in for commands that never show a dashboard.
+    from ctrlbus.web.options import DEFAULT_HTTP_HOST, DEFAULT_HTTP_PORT, DEFAULT_PUSH_HZ, TOKEN_ENV
+
+    parser.add_argument(
+        "--http",
+        "--listen",
+        dest="http",
+        default=f"{DEFAULT_HTTP_HOST}:{DEFAULT_HTTP_PORT}",
+        metavar="HOST[:PORT]",
+        help=f"dashboard address (default {DEFAULT_HTTP_HOST}:{DEFAULT_HTTP_PORT}); "
+        "an address other than loopback needs --token",
+    )
+    parser.add_argument(
+        "--token",
+        default=None,
+        metavar="TOKEN",
+        help=f"secret every dashboard request must carry (?token=... or an X-Ctrlbus-Token header); "
+        f"default: ${TOKEN_ENV}",
+    )
+    parser.add_argument(
+        "--push-hz",
+        type=float,
+        default=DEFAULT_PUSH_HZ,
+        metavar="HZ",
+        help=f"dashboard update rate (default {DEFAULT_PUSH_HZ:g})",
+    )
+
+
+# --- input and output of bytes ------------------------------------------------------------------
+
+# Hex text as people paste it: pairs or runs of hex digits, optionally 0x-prefixed, separated by
+# spaces, newlines, commas or colons; '#' starts a comment that runs to the end of the line.
+_HEX_TOKEN = re.compile(r"(?:0[xX])?([0-9A-Fa-f]+)")
+_NOT_SEPARATOR = re.compile(r"[^\s,:]+")
+
+
+def read_input_bytes(path: str) -> bytes:
+    """The bytes of a file, or of stdin when `path` is '-' (OSError if unreadable)."""
+    if path == "-":
+        return sys.stdin.buffer.read()
+    return Path(path).read_bytes()
+
+
+def parse_hex_text(text: str) -> bytes:
+    """Bytes from hex text ("10 02 F8 30 DA", "0x10,0x02", "1002f830da"); UsageError naming the
+    line and column of anything else."""
+    digits: list[str] = []
+    for line_number, line in enumerate(text.splitlines(), start=1):
+        for token in _NOT_SEPARATOR.finditer(line.split("#", 1)[0]):
+            match = _HEX_TOKEN.fullmatch(token.group())
+            if match is None:
+                where = f"line {line_number} column {token.start() + 1}"
+                raise UsageError(f"not hex text: {token.group()!r} at {where}")
+            digits.append(match.group(1))
+    joined = "".join(digits)
+    if len(joined) % 2:
+        raise UsageError(f"hex text has an odd number of digits ({len(joined)})")
+    return bytes.fromhex(joined)
+
+
+def hex_or_binary(data: bytes) -> bytes:
+    """`data` itself, unless it is hex text (ASCII of hex digits, separators and comments only),
+    in which case the bytes it spells."""
+    try:
+        text = data.decode("ascii")
+    except UnicodeDecodeError:
+        return data
+    try:
+        return parse_hex_text(text)
+    except UsageError:
+        return data
+
+
+def format_hex(data: bytes, per_line: int = 16) -> str:
+    """Uppercase hex pairs separated by spaces (the vectors' style), `per_line` bytes a line."""
+    lines = [data[i : i + per_line].hex(" ").upper() for i in range(0, len(data), per_line)]
+    return "\n".join(lines) + "\n" if lines else ""
+
+
+def write_output(path: str | None, data: bytes | str) -> None:
+    """Write text or bytes to a file, or to stdout when `path` is None or '-'."""
+    if path is None or path == "-":
+        if isinstance(data, bytes):
+            sys.stdout.buffer.write(data)
+            sys.stdout.buffer.flush()
+        else:
+            sys.stdout.write(data)
+            sys.stdout.flush()
+    elif isinstance(data, bytes):
+        Path(path).write_bytes(data)
+    else:
+        Path(path).write_text(data, encoding="utf-8")
+
+
+# --- stopping a long-running command ---------------------------------------------------------------
+
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+@contextlib.contextmanager
+def stop_on_signals(stop: threading.Event) -> Iterator[None]:
+    """Inside, Ctrl-C, SIGTERM and SIGHUP set `stop` instead of interrupting, so a command's loop
+    ends cleanly. Outside the main thread (where signal handlers cannot be set) it does nothing."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def on_signal(signum: int, frame: FrameType | None) -> None:
+        stop.set()
+
+    previous = {sig: signal.signal(sig, on_signal) for sig in STOP_SIGNALS}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
