@@ -1,0 +1,151 @@
+"""`ctrlbus sim`: serve the simulated base (a differential-drive robot in a room) on a link.
+
+    ctrlbus sim --pty | --listen HOST:PORT | --port URL [--config FILE] [--room FILE]
+                [--binary-config FILE] [--profile reference|sdk2020] [--time-scale X] [--seed N]
+                [--watchdog-ms N] [--reference-checksum]
+
+Prints where it serves on stdout as one line (`pty: /dev/pts/N`, `listen: HOST:PORT` or
+`port: URL`), then answers the Core until Ctrl-C or SIGTERM (exit 0).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import signal
+import sys
+import threading
+from collections.abc import Iterator
+from types import FrameType
+from typing import Any
+
+from ctrlbus.base import DEFAULT_WATCHDOG_S, serve
+from ctrlbus.cli.common import add_serve_arguments
+from ctrlbus.errors import UsageError
+from ctrlbus.sim.server import MAX_TIME_SCALE, SimServer, SimSettings
+
+DESCRIPTION = """\
+Serve the simulated base on a link: a differential-drive robot in a 2-D room with distance
+sensors, bumpers, cliff sensors, a battery and a charging dock (docs/simulator.md). It answers
+every Control Bus request as a real base would (docs/base-framework.md). The first line on stdout
+says where it serves: 'pty: /dev/pts/N', 'listen: HOST:PORT' or 'port: URL'. Ctrl-C stops it.
+"""
+
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+def register(subparsers: Any) -> None:
+    parser: argparse.ArgumentParser = subparsers.add_parser(
+        "sim",
+        help="serve the simulated base on a pty, TCP or a serial port",
+        description=DESCRIPTION,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    add_serve_arguments(parser)
+    parser.add_argument(
+        "--config", metavar="FILE", help="base description, JSON (default: the packaged robot)"
+    )
+    parser.add_argument("--room", metavar="FILE", help="room description, JSON (default: the packaged room)")
+    parser.add_argument(
+        "--binary-config",
+        metavar="FILE",
+        help="JSON binary configuration (see `ctrlbus config example`) served for GET_BASE_CONF_ADV "
+        "(0x21); without it 0x21 is answered ERROR 0x8000 and the Core uses GET_BASE_CONF",
+    )
+    parser.add_argument(
+        "--profile",
+        default="reference",
+        metavar="NAME",
+        help="answer variants: reference (2018 firmware sizes, default) or sdk2020 (2020 SDK sizes)",
+    )
+    parser.add_argument(
+        "--time-scale",
+        default="1",
+        metavar="X",
+        help=f"simulated seconds per real second (default 1, at most {MAX_TIME_SCALE:g})",
+    )
+    parser.add_argument("--seed", default=None, metavar="N", help="noise seed (default: the description's)")
+    parser.add_argument(
+        "--watchdog-ms",
+        default=str(round(DEFAULT_WATCHDOG_S * 1000)),
+        metavar="N",
+        help=f"motor watchdog: stop after N ms without a CTRL_BUS request (default "
+        f"{DEFAULT_WATCHDOG_S * 1000:g}; 0 switches it off)",
+    )
+    parser.add_argument(
+        "--reference-checksum",
+        action="store_true",
+        help="answer checksum errors with 0x00C0 as the reference firmware does (default 0x0040)",
+    )
+    parser.set_defaults(func=run)
+
+
+def _number(option: str, text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise UsageError(f"{option} wants a number, got {text!r}") from None
+    return value
+
+
+def _integer(option: str, text: str) -> int:
+    try:
+        return int(text, 0)
+    except ValueError:
+        raise UsageError(f"{option} wants an integer, got {text!r}") from None
+
+
+def settings_from_args(args: argparse.Namespace) -> SimSettings:
+    """The checked settings; UsageError (one line) for a bad value."""
+    watchdog_ms = _number("--watchdog-ms", args.watchdog_ms)
+    if not watchdog_ms >= 0 or watchdog_ms == float("inf"):
+        raise UsageError(f"--watchdog-ms wants a number of milliseconds >= 0, got {args.watchdog_ms!r}")
+    seed = None if args.seed is None else _integer("--seed", args.seed)
+    if seed is not None and seed < 0:
+        raise UsageError(f"--seed wants an integer >= 0, got {args.seed!r}")
+    return SimSettings(
+        config=args.config,
+        room=args.room,
+        binary_config=args.binary_config,
+        profile=args.profile,
+        time_scale=_number("--time-scale", args.time_scale),
+        seed=seed,
+        watchdog_s=watchdog_ms / 1000.0 if watchdog_ms > 0 else None,
+        reference_checksum_code=args.reference_checksum,
+    )
+
+
+@contextlib.contextmanager
+def _stop_on_signals(stop: threading.Event) -> Iterator[None]:
+    """Ctrl-C, SIGTERM and SIGHUP set `stop` (so the loop ends cleanly) while inside."""
+    if threading.current_thread() is not threading.main_thread():
+        yield  # signal handlers belong to the main thread; whoever runs us there stops us
+        return
+
+    def on_signal(signum: int, frame: FrameType | None) -> None:
+        stop.set()
+
+    previous = {sig: signal.signal(sig, on_signal) for sig in STOP_SIGNALS}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
+    """Serve until a stop signal (or until `stop` is set, for callers in other threads)."""
+    settings = settings_from_args(args)
+    stop = stop if stop is not None else threading.Event()
+    with SimServer.open(settings, pty=args.pty, listen=args.listen, port=args.port, baud=args.baud) as server:
+        print(server.address, flush=True)
+        with _stop_on_signals(stop):
+            serve(server.stack, server.link, stop_event=stop)
+        counters = server.stack.counters()
+    print(
+        f"ctrlbus sim: stopped ({sum(counters.requests.values())} requests, "
+        f"{sum(counters.errors_sent.values())} error answers, {counters.watchdog_trips} watchdog trips)",
+        file=sys.stderr,
+        flush=True,
+    )
+    return 0

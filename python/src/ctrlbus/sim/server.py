@@ -1,0 +1,132 @@
+"""Build a simulated base from its files and serve it on a link: what `ctrlbus sim` and the demo
+share.
+
+    settings = SimSettings(config="robot.json", time_scale=2.0)
+    served = SimServer.open(settings, pty=True)       # or listen="127.0.0.1:5555", port=URL
+    print(served.link.name)
+    served.start()  ...  served.close()
+
+Everything that can be refused (files, numbers, the link) is refused before anything runs, with
+a CtrlbusError naming the problem.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from types import TracebackType
+from typing import Self
+
+from ctrlbus import binconf
+from ctrlbus.base import DEFAULT_WATCHDOG_S, BaseConfig, BaseRunner, BaseStack, Profile, parse_profile
+from ctrlbus.errors import BinaryConfigError, UsageError
+from ctrlbus.link import DEFAULT_BAUD, PtyLink, SerialLink, TcpServerLink, serve_link
+from ctrlbus.sim.base import SimulatedBase
+from ctrlbus.sim.description import load_base_description
+from ctrlbus.sim.room import load_room
+from ctrlbus.sim.world import World
+
+__all__ = ["SimServer", "SimSettings", "build_simulated_stack", "read_binary_config"]
+
+MAX_TIME_SCALE = 1000.0
+
+
+@dataclass(frozen=True)
+class SimSettings:
+    """What `ctrlbus sim` takes: file paths (None = the packaged defaults) and numbers."""
+
+    config: str | Path | None = None  # base description (docs/simulator.md)
+    room: str | Path | None = None
+    binary_config: str | Path | None = None  # JSON configuration served for GET_BASE_CONF_ADV
+    profile: Profile | str = Profile.REFERENCE
+    time_scale: float = 1.0
+    seed: int | None = None
+    watchdog_s: float | None = DEFAULT_WATCHDOG_S
+    reference_checksum_code: bool = False
+
+
+def read_binary_config(path: str | Path) -> bytes:
+    """The blob of a JSON binary configuration file (docs/binary-config.md); BinaryConfigError
+    naming the file if it cannot be read or encoded."""
+    try:
+        text = Path(path).read_bytes()
+    except OSError as exc:
+        raise BinaryConfigError(f"cannot read {path}: {exc.strerror or exc}") from None
+    try:
+        return binconf.encode(binconf.load_json(text))
+    except BinaryConfigError as exc:
+        raise BinaryConfigError(f"{path}: {exc}", offset=exc.offset, path=exc.path) from None
+
+
+def build_simulated_stack(settings: SimSettings) -> tuple[SimulatedBase, BaseStack]:
+    """Load the files and make the simulated base and its stack (nothing runs yet)."""
+    scale = settings.time_scale
+    if not (math.isfinite(scale) and 0 < scale <= MAX_TIME_SCALE):
+        raise UsageError(f"time scale must be a number > 0 and at most {MAX_TIME_SCALE:g}, got {scale:g}")
+    if settings.seed is not None and settings.seed < 0:
+        raise UsageError(f"seed must be an integer >= 0, got {settings.seed}")
+    config = BaseConfig(
+        profile=parse_profile(settings.profile),
+        watchdog_s=settings.watchdog_s,
+        reference_checksum_code=settings.reference_checksum_code,
+    )
+    blob = None if settings.binary_config is None else read_binary_config(settings.binary_config)
+    world = World(load_base_description(settings.config), load_room(settings.room), seed=settings.seed)
+    sim = SimulatedBase(world, binary_config=blob, time_scale=scale, seed=settings.seed)
+    return sim, BaseStack(sim, config)
+
+
+class SimServer:
+    """A simulated base, its stack, the link it serves and the runner thread."""
+
+    def __init__(
+        self, sim: SimulatedBase, stack: BaseStack, link: PtyLink | TcpServerLink | SerialLink
+    ) -> None:
+        self.sim = sim
+        self.stack = stack
+        self.link = link
+        self.runner = BaseRunner(stack, link, name="ctrlbus-sim")
+
+    @classmethod
+    def open(
+        cls,
+        settings: SimSettings,
+        *,
+        pty: bool = False,
+        listen: str | None = None,
+        port: str | None = None,
+        baud: int = DEFAULT_BAUD,
+    ) -> Self:
+        """Build the base, then open the link (so a bad file never leaves a port open)."""
+        sim, stack = build_simulated_stack(settings)
+        link = serve_link(pty=pty, listen=listen, port=port, baud=baud)
+        return cls(sim, stack, link)
+
+    @property
+    def address(self) -> str:
+        """What to print: `pty: /dev/pts/N`, `listen: HOST:PORT` or `port: URL`."""
+        link = self.link
+        if isinstance(link, PtyLink):
+            return f"pty: {link.path}"
+        if isinstance(link, TcpServerLink):
+            host = f"[{link.host}]" if ":" in str(link.host) else link.host
+            return f"listen: {host}:{link.port}"
+        return f"port: {link.name}"
+
+    def start(self) -> Self:
+        self.runner.start()
+        return self
+
+    def close(self) -> None:
+        """Stop the runner and close the link. Idempotent."""
+        self.runner.stop()
+        self.link.close()
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.close()
