@@ -550,5 +550,5 @@ def example_config() -> dict[str, JsonValue]:
 
 
 def example_blob() -> bytes:
-    """The blob a simulated base serves for GET_BASE_CONF_ADV by default."""
+    """The blob of the example configuration (what `ctrlbus sim --binary-config` is typically given)."""
     return encode(example_config())

@@ -11,6 +11,7 @@ import argparse
 import importlib
 import sys
 from collections.abc import Sequence
+from typing import NoReturn
 
 from ctrlbus import __version__
 from ctrlbus.errors import CtrlbusError
@@ -29,14 +30,21 @@ SUBCOMMANDS: tuple[str, ...] = (
 )
 
 
+class OneLineErrorParser(argparse.ArgumentParser):
+    """argparse prints usage plus the error; we print one line naming the problem, exit 2."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = OneLineErrorParser(
         prog="ctrlbus",
         description="SLAMWARE Control Bus tools: Core emulator, simulated base, conformance checker, "
         "decoders.",
     )
     parser.add_argument("--version", action="version", version=f"ctrlbus {__version__}")
-    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=OneLineErrorParser)
     for name in SUBCOMMANDS:
         try:
             module = importlib.import_module(f"ctrlbus.cli.{name}_cmd")
