@@ -1,0 +1,1282 @@
+"""The Core emulator as a sans-IO session: bytes and time in, request frames out.
+
+`CoreSession` behaves as docs/protocol.md §11 describes: it repeats CONNECT_BASE until the base
+answers (with a flushing SYNC after each unanswered attempt), reads the configuration
+(GET_BASE_CONF_ADV, falling back to GET_BASE_CONF), sends SEND_EVENT SYSTEM_UP_OK, and then polls
+on its schedule, one request outstanding at a time, with timeouts, retries, disconnect detection
+and reconnection. It integrates the deadreckon deltas into a pose, acts on the base's external
+commands (POLL_BASE_CMD) and runs actions (drive, turn, go home).
+
+It never reads a clock or a port:
+
+    request = session.poll(now)          # the next request frame to send, or None
+    session.receive(answer_bytes, now)   # bytes from the link
+    session.next_poll_time()             # when poll() may next have something to do
+
+Everything else (telemetry, controls, snapshot, statistics, event log) is thread-safe: the
+dashboard calls it from its own thread while a runner thread drives poll/receive.
+"""
+
+from __future__ import annotations
+
+import enum
+import logging
+import math
+import threading
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from ctrlbus import binconf
+from ctrlbus.core.actions import Action, DriveDistance, TurnAngle
+from ctrlbus.core.config import CoreConfig
+from ctrlbus.core.docking import GoHome
+from ctrlbus.core.geometry import BaseGeometry, geometry_from_conf, geometry_from_tree
+from ctrlbus.core.stats import LinkStats
+from ctrlbus.errors import BinaryConfigError, MessageError, UsageError
+from ctrlbus.frame import Frame, StreamDecoder
+from ctrlbus.kinematics import DeadreckonDelta, Pose, integrate_pose
+from ctrlbus.messages import (
+    AnswerMessage,
+    Cmd,
+    ConnectBase,
+    ConnectBaseAnswer,
+    ErrorAnswer,
+    ErrorCode,
+    Event,
+    ExternalCommand,
+    GetBaseBumperData,
+    GetBaseBumperDataAnswer,
+    GetBaseConf,
+    GetBaseConfAdv,
+    GetBaseConfAdvAnswer,
+    GetBaseConfAnswer,
+    GetBaseMotorData,
+    GetBaseMotorDataAnswer,
+    GetBaseSensorData,
+    GetBaseSensorDataAnswer,
+    GetBaseStatus,
+    GetBaseStatusAnswer,
+    GetChargerData,
+    GetChargerDataAnswer,
+    HealthGetError,
+    HealthGetErrorAnswer,
+    HealthGetHealth,
+    HealthGetHealthAnswer,
+    InvalidAnswer,
+    PollBaseAnsCmd,
+    PollBaseCmd,
+    PollBaseCmdAnswer,
+    RequestMessage,
+    Response,
+    SendEvent,
+    SetVAndGetDeadreckon,
+    SetVAndGetDeadreckonAnswer,
+    Sync,
+    decode_answer,
+    request_frame,
+)
+
+log = logging.getLogger("ctrlbus.core")
+
+SCHEMA_VERSION = 1
+MAX_EVENTS = 200
+MAX_TRAIL_POINTS = 2000
+TRAIL_STEP_MM = 10.0
+# §11.1: the flushing SYNC is a long frame of exactly 512 bytes: 4 header bytes, 507 filler, checksum.
+FLUSH_FILLER = bytes(507)
+WATCHDOG_HEALTH_CODE = 0x01038000  # §10.3 "motor watchdog tripped"
+# Answers that say the request did not arrive intact (§11.6): a failed attempt, sent again.
+TRANSPORT_ERRORS = frozenset({ErrorCode.TOO_LONG, ErrorCode.CHECKSUM, ErrorCode.REFERENCE_CHECKSUM})
+POWER_CHARGING, POWER_DC_CONNECTED, POWER_ON_DOCK = 0x01, 0x02, 0x04
+MOTION_STALL, MOTION_TRACTION_LOST = 0x02, 0x04
+
+
+class ConnectionState(enum.StrEnum):
+    CONNECTING = "connecting"  # looking for the base, before the first connection
+    CONFIGURING = "configuring"  # connected, reading the configuration
+    CONNECTED = "connected"  # polling
+    DISCONNECTED = "disconnected"  # lost (reconnecting), stopped, or the link failed
+
+
+class _Purpose(enum.Enum):
+    CONNECT = "connect"
+    FLUSH = "flush"
+    CONFIG_ADV = "config_adv"
+    CONFIG = "config"
+    SYSTEM_UP = "system_up"
+    POLL = "poll"
+    NOTICE = "notice"  # CORE_DISCONNECT after a lost connection: one attempt, best effort
+    STOP = "stop"  # CORE_DISCONNECT when stopped on purpose
+
+
+class _Step(enum.Enum):
+    CONNECT = "connect"
+    CONFIG_ADV = "config_adv"
+    CONFIG = "config"
+    SYSTEM_UP = "system_up"
+    POLLING = "polling"
+    NOTICE = "notice"
+    STOPPED = "stopped"
+
+
+@dataclass
+class _Outstanding:
+    message: RequestMessage
+    frame: bytes
+    purpose: _Purpose
+    max_attempts: int
+    attempts: int = 0
+    sent_at: float = 0.0
+    deadline: float = 0.0
+    resend: bool = False  # a failed attempt: send again at the next poll()
+    schedule_name: str | None = None
+
+
+@dataclass(frozen=True)
+class BaseIdentity:
+    """The base as CONNECT_BASE describes it."""
+
+    model: str
+    firmware_version: str  # "major.minor"
+    hardware_version: int
+    serial: str  # 24 hex digits
+    firmware_version_suffix: str | None
+
+    @classmethod
+    def from_answer(cls, answer: ConnectBaseAnswer) -> BaseIdentity:
+        serial = "".join(f"{word:08X}" for word in answer.serial)
+        return cls(
+            answer.model,
+            answer.firmware_version_text,
+            answer.hardware_version,
+            serial,
+            answer.firmware_version_suffix,
+        )
+
+
+@dataclass(frozen=True)
+class HealthError:
+    code: int
+    message: str
+
+    @property
+    def level(self) -> int:
+        return self.code >> 24
+
+
+@dataclass(frozen=True)
+class HealthState:
+    flags: int | None
+    errors: tuple[HealthError, ...]
+
+
+@dataclass(frozen=True)
+class CoreEvent:
+    seq: int
+    t_s: float
+    direction: str  # "core" or "base"
+    text: str
+
+
+@dataclass(frozen=True)
+class CommandState:
+    vx_mps: float
+    omega_radps: float
+    estop: bool
+    mode: str  # idle | teleop | external | go_home | estop
+    activity: str | None
+
+
+# (name, request, rate attribute of PollRates) in the order §11.4 sends them when several are due.
+_SCHEDULE: tuple[tuple[str, RequestMessage | None, str], ...] = (
+    ("set_v", None, "set_v_hz"),  # built at send time from the current velocity command
+    ("bumper", GetBaseBumperData(), "bumper_hz"),
+    ("sensor", GetBaseSensorData(), "sensor_hz"),
+    ("status", GetBaseStatus(), "status_hz"),
+    ("motor", GetBaseMotorData(), "motor_hz"),
+    ("poll_cmd", PollBaseCmd(), "poll_cmd_hz"),
+    ("health", HealthGetHealth(), "health_hz"),
+    ("charger", GetChargerData(0), "charger_hz"),
+)
+_DOCKING_ONLY = frozenset({"charger"})
+
+
+def _command_name(code: int) -> str:
+    try:
+        return ExternalCommand(code).name
+    except ValueError:
+        return "unknown command"
+
+
+def _event_name(code: int) -> str:
+    try:
+        return Event(code).name
+    except ValueError:
+        return f"0x{code:02X}"
+
+
+def _check_finite(**values: float) -> None:
+    for name, value in values.items():
+        if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+            raise UsageError(f"{name} must be a finite number, got {value!r}")
+
+
+def describe_request(message: RequestMessage) -> str:
+    """How the event log names a request."""
+    if isinstance(message, ConnectBase):
+        return f"CONNECT_BASE v{message.protocol_version}"
+    if isinstance(message, SendEvent):
+        return f"SEND_EVENT {_event_name(message.event)}"
+    if isinstance(message, Sync):
+        return f"SYNC flush ({len(message.filler) + 5} bytes)"
+    if isinstance(message, HealthGetError):
+        return f"HEALTH_GET_ERROR #{message.index}"
+    return message.NAME
+
+
+class CoreSession:
+    """The Core emulator's protocol state machine and telemetry (sans-IO, thread-safe)."""
+
+    def __init__(self, config: CoreConfig | None = None, *, port: str = "") -> None:
+        self.config = config if config is not None else CoreConfig()
+        self.port = port
+        self._lock = threading.RLock()
+        self._decoder = StreamDecoder(timeout=self.config.decoder_timeout_s)
+        self._stats = LinkStats()
+        self._subscribers: list[Callable[[str], None]] = []
+        self._changed: set[str] = set()
+        # Time: the first `now` seen is the session's zero.
+        self._t0: float | None = None
+        self._now = 0.0
+        # Protocol state.
+        self._step = _Step.CONNECT
+        self._state = ConnectionState.CONNECTING
+        self._state_since = 0.0
+        self._state_reason: str | None = None
+        self._outstanding: _Outstanding | None = None
+        self._next_connect_at: float | None = None
+        self._last_connect_at: float | None = None
+        self._connect_attempts = 0  # since the last successful connection
+        self._stop_requested = False
+        self._followups: deque[RequestMessage] = deque()
+        self._next_due: dict[str, float] = {}
+        self._last_ctrl_sent: float | None = None
+        self._offered_command: int | None = None
+        self._health_collect: list[HealthError | None] | None = None
+        self._health_flags_pending: int | None = None
+        self._last_error_logged: dict[str, int] = {}
+        # Telemetry.
+        self._identity: BaseIdentity | None = None
+        self._geometry: BaseGeometry | None = None
+        self._configured = False
+        self._config_source: str | None = None
+        self._pose = Pose(0.0, 0.0, 0.0)
+        self._trail: deque[tuple[float, float]] = deque([(0.0, 0.0)], maxlen=MAX_TRAIL_POINTS)
+        self._deadreckon_timestamp_ms: int | None = None
+        self._motion_status: int | None = None
+        self._motor_totals_mm: tuple[int, int] | None = None
+        self._battery_percent: int | None = None
+        self._power_status: int | None = None
+        self._bumper_bitmap: int | None = None
+        self._distances_mm: tuple[float, ...] | None = None
+        self._charger: GetChargerDataAnswer | None = None
+        self._health = HealthState(None, ())
+        # Commands.
+        self._vx = 0.0
+        self._omega = 0.0
+        self._estop = False
+        self._action: Action | None = None
+        self._last_outcome: str | None = None
+        self._events: deque[CoreEvent] = deque(maxlen=MAX_EVENTS)
+        self._event_seq = 0
+
+    # ===================================================================== sans-IO interface
+
+    def poll(self, now: float) -> bytes | None:
+        """The next request frame to send at time `now` (seconds), or None if nothing is due."""
+        with self._lock:
+            self._advance(now)
+            frame = self._poll_locked(now)
+        self._notify()
+        return frame
+
+    def receive(self, data: bytes, now: float) -> None:
+        """Bytes read from the link at time `now`."""
+        with self._lock:
+            self._advance(now)
+            self._expire(now)
+            for frame in self._decoder.feed(data, now):
+                self._on_frame(frame, now)
+        self._notify()
+
+    def next_poll_time(self) -> float | None:
+        """The earliest time at which poll() may return a frame or time something out, if no
+        bytes arrive first; None when only arriving bytes (or a command) can change anything."""
+        with self._lock:
+            outstanding = self._outstanding
+            if outstanding is not None:
+                return self._now if outstanding.resend else outstanding.deadline
+            step = self._step
+            if step is _Step.STOPPED:
+                return None
+            if self._stop_requested:
+                return self._now
+            if step is _Step.CONNECT:
+                return self._next_connect_at if self._next_connect_at is not None else self._now
+            if step is not _Step.POLLING or self._followups:
+                return self._now
+            dues = [due for name, due in self._next_due.items() if self._rate(name) > 0]
+            return min(dues) if dues else None
+
+    def request_stop(self) -> None:
+        """Stop on purpose: once the request in flight is settled, send SEND_EVENT CORE_DISCONNECT
+        (if connected), then stop. `stopped` tells when it is done."""
+        with self._lock:
+            if self._step is _Step.STOPPED or self._stop_requested:
+                return
+            self._stop_requested = True
+            self._cancel_action("the Core is stopping")
+            self._vx = self._omega = 0.0
+            if not self._connected_to_base():
+                self._finish_stop()
+        self._notify()
+
+    @property
+    def stopped(self) -> bool:
+        with self._lock:
+            return self._step is _Step.STOPPED
+
+    def link_failed(self, reason: str, now: float) -> None:
+        """The runner could not read or write the link: the connection is gone."""
+        with self._lock:
+            self._advance(now)
+            self._outstanding = None
+            if self._step is _Step.STOPPED:
+                pass
+            elif self._stop_requested:
+                self._finish_stop()
+            elif self._state is not ConnectionState.DISCONNECTED or self._state_reason != reason:
+                self._log("core", f"link failed: {reason}")
+                self._drop_connection(reason, now, notify_base=False)
+        self._notify()
+
+    # ============================================================================== controls
+
+    def limits(self) -> tuple[float, float]:
+        """(max |vx| m/s, max |omega| rad/s): the configured limits once the base's configuration
+        is known, (0, 0) before."""
+        with self._lock:
+            if not self._configured:
+                return 0.0, 0.0
+            return self.config.max_vx_mps, self.config.max_omega_radps
+
+    def set_velocity(self, vx_mps: float, omega_radps: float) -> None:
+        """Command a body velocity (clamped to limits()); cancels a running action; ignored while
+        the emergency stop is latched."""
+        _check_finite(vx_mps=vx_mps, omega_radps=omega_radps)
+        with self._lock:
+            if self._estop:
+                return
+            max_vx, max_omega = self.limits()
+            self._cancel_action("cancelled by a velocity command")
+            self._vx = max(-max_vx, min(max_vx, float(vx_mps)))
+            self._omega = max(-max_omega, min(max_omega, float(omega_radps)))
+            self._changed.add("command")
+        self._notify()
+
+    def emergency_stop(self) -> None:
+        """Zero velocity at once, cancel any action, latch until release_stop()."""
+        with self._lock:
+            self._cancel_action("cancelled by the emergency stop")
+            self._vx = self._omega = 0.0
+            if not self._estop:
+                self._estop = True
+                self._log("core", "emergency stop")
+            self._changed.add("command")
+        self._notify()
+
+    def release_stop(self) -> None:
+        """Unlatch the emergency stop; the velocity stays zero until commanded again."""
+        with self._lock:
+            if self._estop:
+                self._estop = False
+                self._log("core", "emergency stop released")
+            self._vx = self._omega = 0.0
+            self._changed.add("command")
+        self._notify()
+
+    def go_home(self) -> None:
+        """Start docking on the charger using its beacons (ignored while the stop is latched)."""
+        with self._lock:
+            self._start_action(GoHome(self.config.docking), "requested")
+        self._notify()
+
+    def drive(self, distance_m: float, speed_mps: float | None = None) -> None:
+        """Drive straight `distance_m` (negative: backwards), as MOVE_FORWARD/BACKWARD do."""
+        speed = self.config.move_speed_mps if speed_mps is None else speed_mps
+        _check_finite(distance_m=distance_m, speed_mps=speed)
+        if speed <= 0:
+            raise UsageError(f"speed_mps must be positive, got {speed!r}")
+        with self._lock:
+            self._start_action(DriveDistance(distance_m, min(speed, self.config.max_vx_mps)), "requested")
+        self._notify()
+
+    def turn(self, angle_deg: float, rate_radps: float | None = None) -> None:
+        """Turn in place by `angle_deg` (positive: left), as TURN_LEFT/RIGHT do."""
+        rate = self.config.turn_rate_radps if rate_radps is None else rate_radps
+        _check_finite(angle_deg=angle_deg, rate_radps=rate)
+        if rate <= 0:
+            raise UsageError(f"rate_radps must be positive, got {rate!r}")
+        with self._lock:
+            self._start_action(TurnAngle(angle_deg, min(rate, self.config.max_omega_radps)), "requested")
+        self._notify()
+
+    def cancel_action(self) -> None:
+        """Stop whatever action runs, as CANCEL_ACTION does."""
+        with self._lock:
+            self._cancel_action("cancelled")
+            self._vx = self._omega = 0.0
+            self._changed.add("command")
+        self._notify()
+
+    def subscribe(self, callback: Callable[[str], None]) -> Callable[[], None]:
+        """Call `callback(topic)` after each change; returns a function that unsubscribes.
+
+        Topics: connection, base, pose, command, battery, motion, bumpers, sensors, charger,
+        health, events. Callbacks run in the thread that called poll/receive (or the control),
+        outside the session's lock; they must be quick. An exception in one is logged and
+        does not reach the session.
+        """
+        with self._lock:
+            self._subscribers.append(callback)
+
+        def unsubscribe() -> None:
+            with self._lock:
+                if callback in self._subscribers:
+                    self._subscribers.remove(callback)
+
+        return unsubscribe
+
+    # ============================================================================= telemetry
+
+    @property
+    def state(self) -> ConnectionState:
+        with self._lock:
+            return self._state
+
+    @property
+    def connected(self) -> bool:
+        return self.state is ConnectionState.CONNECTED
+
+    @property
+    def connects(self) -> int:
+        """Successful connections so far."""
+        with self._lock:
+            return self._stats.connects
+
+    @property
+    def time_s(self) -> float:
+        """Seconds since the session's first poll/receive."""
+        with self._lock:
+            return self._elapsed(self._now)
+
+    @property
+    def pose(self) -> Pose:
+        """The dead-reckoned pose, in the frame of the robot when the Core started."""
+        with self._lock:
+            return self._pose
+
+    @property
+    def identity(self) -> BaseIdentity | None:
+        with self._lock:
+            return self._identity
+
+    @property
+    def geometry(self) -> BaseGeometry | None:
+        with self._lock:
+            return self._geometry
+
+    @property
+    def battery_percent(self) -> int | None:
+        with self._lock:
+            return self._battery_percent
+
+    @property
+    def power_status(self) -> int | None:
+        with self._lock:
+            return self._power_status
+
+    @property
+    def bumper_bitmap(self) -> int | None:
+        with self._lock:
+            return self._bumper_bitmap
+
+    @property
+    def bumpers_pressed(self) -> tuple[bool, ...]:
+        """One flag per configured bumper (the bitmap is active low)."""
+        with self._lock:
+            return self._pressed_bumpers()
+
+    @property
+    def distances_mm(self) -> tuple[float, ...] | None:
+        """The 16 distances of the last GET_BASE_SENSOR_DATA (None before the first)."""
+        with self._lock:
+            return self._distances_mm
+
+    @property
+    def charger_probes(self) -> tuple[int, ...] | None:
+        with self._lock:
+            return None if self._charger is None else self._charger.probes
+
+    @property
+    def motion_status(self) -> int | None:
+        with self._lock:
+            return self._motion_status
+
+    @property
+    def motor_totals_mm(self) -> tuple[int, int] | None:
+        with self._lock:
+            return self._motor_totals_mm
+
+    @property
+    def health(self) -> HealthState:
+        with self._lock:
+            return self._health
+
+    @property
+    def command(self) -> CommandState:
+        with self._lock:
+            return self._command_state()
+
+    @property
+    def last_outcome(self) -> str | None:
+        """How the last action ended."""
+        with self._lock:
+            return self._last_outcome
+
+    @property
+    def offered_command(self) -> int | None:
+        """The external command the base offered last (None before any)."""
+        with self._lock:
+            return self._offered_command
+
+    def events(self, since_seq: int = 0) -> list[CoreEvent]:
+        """Logged events with seq > since_seq, oldest first (at most MAX_EVENTS are kept)."""
+        with self._lock:
+            return [event for event in self._events if event.seq > since_seq]
+
+    def link_stats(self) -> dict[str, Any]:
+        """Link statistics as plain values (a superset of the snapshot's `link` part)."""
+        with self._lock:
+            return self._link_stats()
+
+    def snapshot(self) -> dict[str, Any]:
+        """The whole state, as docs/dashboard.md's schema (version 1) describes it."""
+        with self._lock:
+            return self._snapshot()
+
+    # ====================================================================== the state machine
+
+    def _advance(self, now: float) -> None:
+        if not math.isfinite(now):
+            raise UsageError(f"time must be a finite number of seconds, got {now!r}")
+        if self._t0 is None:
+            self._t0 = self._now = self._state_since = now
+            self._next_connect_at = now
+        elif now > self._now:
+            self._now = now
+
+    def _elapsed(self, now: float) -> float:
+        return 0.0 if self._t0 is None else now - self._t0
+
+    def _rate(self, name: str) -> float:
+        rates = self.config.rates
+        docking = isinstance(self._action, GoHome)
+        if name in _DOCKING_ONLY:
+            return rates.charger_hz if docking else 0.0
+        rate: float = getattr(rates, f"{name}_hz")
+        if name == "status" and docking:
+            return max(rate, rates.charger_hz)  # see the on-dock bit promptly while docking
+        return rate
+
+    def _poll_locked(self, now: float) -> bytes | None:
+        self._expire(now)
+        outstanding = self._outstanding
+        if outstanding is not None:
+            if outstanding.resend:
+                return self._send(outstanding, now)
+            return None
+        step = self._step
+        if step is _Step.STOPPED:
+            return None
+        if self._stop_requested:
+            if self._connected_to_base():
+                return self._start(SendEvent(Event.CORE_DISCONNECT), _Purpose.STOP, now, attempts=1)
+            self._finish_stop()
+            return None
+        if step is _Step.NOTICE:
+            return self._start(SendEvent(Event.CORE_DISCONNECT), _Purpose.NOTICE, now, attempts=1)
+        if step is _Step.CONNECT:
+            if self._next_connect_at is not None and now < self._next_connect_at:
+                return None
+            self._last_connect_at = now
+            self._connect_attempts += 1
+            self._stats.connect_attempts += 1
+            attempt = self._connect_attempts
+            # Log the first attempts, then every tenth: a base that is off must not flood the log.
+            quiet = attempt > 3 and attempt % 10 != 0
+            if not quiet and attempt > 1:
+                self._log("core", f"CONNECT_BASE v1 (attempt {attempt}, no answer yet)")
+            return self._start(ConnectBase(1), _Purpose.CONNECT, now, attempts=1, quiet=quiet or attempt > 1)
+        if step is _Step.CONFIG_ADV:
+            return self._start(GetBaseConfAdv(), _Purpose.CONFIG_ADV, now)
+        if step is _Step.CONFIG:
+            return self._start(GetBaseConf(), _Purpose.CONFIG, now)
+        if step is _Step.SYSTEM_UP:
+            return self._start(SendEvent(Event.SYSTEM_UP_OK), _Purpose.SYSTEM_UP, now)
+        # Polling: follow-ups first (POLL_BASE_ANS_CMD, HEALTH_GET_ERROR), then the schedule.
+        if self._followups:
+            return self._start(self._followups.popleft(), _Purpose.POLL, now)
+        for name, message, _ in _SCHEDULE:
+            rate = self._rate(name)
+            if rate <= 0:
+                continue
+            due = self._next_due.setdefault(name, now)
+            if due > now:
+                continue
+            period = 1.0 / rate
+            due += period
+            self._next_due[name] = due if due > now else now + period
+            if message is None:
+                message = self._velocity_request(now)
+            return self._start(message, _Purpose.POLL, now, schedule_name=name)
+        return None
+
+    def _velocity_request(self, now: float) -> RequestMessage:
+        action = self._action
+        if action is not None:
+            vx, omega = action.command(now)
+            max_vx, max_omega = self.config.max_vx_mps, self.config.max_omega_radps
+            self._vx = max(-max_vx, min(max_vx, vx))
+            self._omega = max(-max_omega, min(max_omega, omega))
+            if action.finished:
+                self._end_action(action)
+            self._changed.add("command")
+        if self._estop:
+            self._vx = self._omega = 0.0
+        return SetVAndGetDeadreckon.from_si(self._vx, 0.0, self._omega)
+
+    def _start(
+        self,
+        message: RequestMessage,
+        purpose: _Purpose,
+        now: float,
+        *,
+        attempts: int | None = None,
+        schedule_name: str | None = None,
+        quiet: bool = False,
+    ) -> bytes:
+        outstanding = self._prepare(message, purpose, attempts=attempts, schedule_name=schedule_name)
+        if schedule_name is None and not quiet:
+            self._log("core", describe_request(message))
+        return self._send(outstanding, now)
+
+    def _prepare(
+        self,
+        message: RequestMessage,
+        purpose: _Purpose,
+        *,
+        attempts: int | None = None,
+        schedule_name: str | None = None,
+    ) -> _Outstanding:
+        """Make `message` the request in flight, to be sent by the next poll()."""
+        long = True if self.config.long_frames or isinstance(message, Sync) else None
+        outstanding = _Outstanding(
+            message=message,
+            frame=request_frame(message, long=long),
+            purpose=purpose,
+            max_attempts=attempts if attempts is not None else 1 + self.config.retries,
+            schedule_name=schedule_name,
+            resend=True,
+        )
+        self._outstanding = outstanding
+        return outstanding
+
+    def _send(self, outstanding: _Outstanding, now: float) -> bytes:
+        if outstanding.attempts:
+            self._stats.retries += 1
+        outstanding.attempts += 1
+        outstanding.resend = False
+        outstanding.sent_at = now
+        wire_time = len(outstanding.frame) * self.config.byte_time_s
+        outstanding.deadline = now + wire_time + self.config.request_timeout_s
+        self._stats.count_request(now)
+        if outstanding.message.CMD == Cmd.CTRL_BUS and self._state is ConnectionState.CONNECTED:
+            last = self._last_ctrl_sent
+            if last is not None and now - last > self.config.watchdog_s:
+                self._stats.watchdog_trips += 1
+                self._log("core", f"no CTRL_BUS request for {now - last:.2f} s: the base's watchdog tripped")
+            self._last_ctrl_sent = now
+        return outstanding.frame
+
+    def _expire(self, now: float) -> None:
+        """Time out the request in flight if its deadline has passed."""
+        outstanding = self._outstanding
+        if outstanding is None or outstanding.resend or now <= outstanding.deadline:
+            return
+        purpose = outstanding.purpose
+        if purpose is _Purpose.FLUSH:
+            self._outstanding = None
+            self._schedule_next_connect(now)
+            return
+        if purpose is _Purpose.CONNECT:
+            self._outstanding = None
+            if self.config.flush_sync:
+                self._prepare(Sync(FLUSH_FILLER), _Purpose.FLUSH, attempts=1)
+            else:
+                self._schedule_next_connect(now)
+            return
+        self._stats.timeouts += 1
+        self._failed_attempt(outstanding, f"no answer to {describe_request(outstanding.message)}", now)
+
+    def _failed_attempt(self, outstanding: _Outstanding, reason: str, now: float) -> None:
+        """An attempt failed (timeout, transport error, INVALID, malformed answer)."""
+        if outstanding.attempts < outstanding.max_attempts:
+            outstanding.resend = True
+            attempt = f"attempt {outstanding.attempts}/{outstanding.max_attempts}"
+            self._log("core", f"{reason} ({attempt}): sending again")
+            return
+        self._outstanding = None
+        purpose = outstanding.purpose
+        if purpose is _Purpose.STOP or self._stop_requested:
+            self._finish_stop()
+        elif purpose is _Purpose.NOTICE:
+            self._enter_connect_loop(now)
+        elif purpose is _Purpose.CONNECT:
+            self._schedule_next_connect(now)
+        else:
+            self._stats.disconnects += 1
+            self._log("core", f"{reason}: {outstanding.max_attempts} attempts failed, base disconnected")
+            self._drop_connection(reason, now, notify_base=True)
+
+    def _drop_connection(self, reason: str, now: float, *, notify_base: bool) -> None:
+        self._set_state(ConnectionState.DISCONNECTED, now, reason)
+        self._cancel_action("cancelled: the base is disconnected")
+        self._vx = self._omega = 0.0
+        self._followups.clear()
+        self._health_collect = None
+        self._last_ctrl_sent = None
+        self._configured = False
+        if notify_base:
+            self._step = _Step.NOTICE
+        else:
+            self._enter_connect_loop(now)
+
+    def _enter_connect_loop(self, now: float) -> None:
+        self._step = _Step.CONNECT
+        self._next_connect_at = now
+
+    def _schedule_next_connect(self, now: float) -> None:
+        """§11.1: CONNECT_BASE every connect_interval_s, and never before `now`."""
+        last = self._last_connect_at if self._last_connect_at is not None else now
+        self._next_connect_at = max(now, last + self.config.connect_interval_s)
+
+    def _connected_to_base(self) -> bool:
+        return self._state in (ConnectionState.CONNECTED, ConnectionState.CONFIGURING)
+
+    def _finish_stop(self) -> None:
+        self._outstanding = None
+        self._step = _Step.STOPPED
+        self._set_state(ConnectionState.DISCONNECTED, self._now, "stopped")
+        self._log("core", "stopped")
+
+    def _set_state(self, state: ConnectionState, now: float, reason: str | None = None) -> None:
+        if state is not self._state:
+            self._state = state
+            self._state_since = now
+            self._changed.add("connection")
+        self._state_reason = reason
+
+    # ============================================================================== answers
+
+    def _on_frame(self, frame: Frame, now: float) -> None:
+        outstanding = self._outstanding
+        if outstanding is None or outstanding.resend:
+            self._stats.stray_answers += 1
+            return
+        if outstanding.purpose is _Purpose.FLUSH:
+            self._stats.flushed_frames += 1
+            return
+        request = outstanding.message
+        if request.CMD == Cmd.CTRL_BUS and frame.cmd in (Response.SYNC, Response.ECHO):
+            self._stats.stray_answers += 1  # a copy of an earlier SYNC or ECHO, not this answer
+            return
+        try:
+            answer = decode_answer(request, frame.cmd, frame.payload)
+        except MessageError as exc:
+            self._stats.malformed_answers += 1
+            self._stats.count_answer(now - outstanding.sent_at)
+            self._log("base", f"malformed answer to {request.NAME}: {exc}")
+            self._failed_attempt(outstanding, f"malformed answer to {request.NAME}", now)
+            return
+        if isinstance(answer, ErrorAnswer):
+            code = answer.error_code
+            self._stats.errors_by_code[code] += 1
+            if code == ErrorCode.NOT_SYNCED:
+                self._stats.not_synced_reports += 1  # about stray bytes; the answer may follow
+                return
+            self._stats.count_answer(now - outstanding.sent_at)
+            if code in TRANSPORT_ERRORS:
+                self._log_error(request, code)
+                self._failed_attempt(outstanding, f"ERROR 0x{code:04X} to {request.NAME}", now)
+                return
+        elif isinstance(answer, InvalidAnswer):
+            self._stats.invalid_answers += 1
+            self._stats.count_answer(now - outstanding.sent_at)
+            self._log("base", f"INVALID to {request.NAME}")
+            self._failed_attempt(outstanding, f"INVALID to {request.NAME}", now)
+            return
+        else:
+            self._stats.count_answer(now - outstanding.sent_at)
+        self._outstanding = None
+        self._on_answer(outstanding, answer, now)
+
+    def _log_error(self, request: RequestMessage, code: int) -> None:
+        """Log an ERROR answer, but not the same one to the same request over and over."""
+        if self._last_error_logged.get(request.NAME) != code:
+            self._last_error_logged[request.NAME] = code
+            self._log("base", f"ERROR 0x{code:04X} to {request.NAME}")
+
+    def _on_answer(self, outstanding: _Outstanding, answer: AnswerMessage, now: float) -> None:
+        purpose = outstanding.purpose
+        request = outstanding.message
+        error = answer.error_code if isinstance(answer, ErrorAnswer) else None
+        if error is not None:
+            self._log_error(request, error)
+        else:
+            self._last_error_logged.pop(request.NAME, None)
+        if purpose is _Purpose.CONNECT:
+            if isinstance(answer, ConnectBaseAnswer):
+                self._on_connected(answer, now)
+            else:
+                self._schedule_next_connect(now)
+        elif purpose is _Purpose.CONFIG_ADV:
+            self._on_config_adv(answer)
+        elif purpose is _Purpose.CONFIG:
+            if isinstance(answer, GetBaseConfAnswer):
+                self._use_geometry(geometry_from_conf(answer))
+            else:
+                self._log("core", "no configuration from the base: going on without its geometry")
+                self._use_geometry(None)
+            self._step = _Step.SYSTEM_UP
+        elif purpose is _Purpose.SYSTEM_UP:
+            self._on_system_up(now)
+        elif purpose is _Purpose.NOTICE:
+            self._enter_connect_loop(now)
+        elif purpose is _Purpose.STOP:
+            self._finish_stop()
+        elif purpose is _Purpose.POLL:
+            self._on_poll_answer(request, answer, now)
+
+    def _on_connected(self, answer: ConnectBaseAnswer, now: float) -> None:
+        identity = BaseIdentity.from_answer(answer)
+        self._identity = identity
+        self._stats.connects += 1
+        self._connect_attempts = 0
+        suffix = f" {identity.firmware_version_suffix}" if identity.firmware_version_suffix else ""
+        self._log(
+            "base",
+            f"CONNECT_BASE answered: {identity.model!r}, firmware {identity.firmware_version}{suffix}, "
+            f"hardware {identity.hardware_version}, serial {identity.serial}",
+        )
+        self._set_state(ConnectionState.CONFIGURING, now)
+        self._step = _Step.CONFIG_ADV
+        self._changed.add("base")
+
+    def _on_config_adv(self, answer: AnswerMessage) -> None:
+        if isinstance(answer, GetBaseConfAdvAnswer):
+            try:
+                tree = binconf.decode(answer.blob)
+            except BinaryConfigError as exc:
+                self._log("core", f"binary configuration does not decode ({exc}): asking GET_BASE_CONF")
+                self._step = _Step.CONFIG
+                return
+            geometry = geometry_from_tree(tree)
+            if geometry is None:
+                self._log("core", "binary configuration has no `base` object: asking GET_BASE_CONF")
+                self._step = _Step.CONFIG
+                return
+            self._log("base", f"binary configuration: {len(answer.blob)} bytes")
+            self._use_geometry(geometry)
+            self._step = _Step.SYSTEM_UP
+            return
+        self._step = _Step.CONFIG  # ERROR 0x8000 (no blob), or any other refusal
+
+    def _use_geometry(self, geometry: BaseGeometry | None) -> None:
+        self._geometry = geometry
+        self._config_source = None if geometry is None else geometry.source
+        self._configured = True
+        self._changed.add("base")
+
+    def _on_system_up(self, now: float) -> None:
+        self._step = _Step.POLLING
+        self._next_due = {}
+        self._followups.clear()
+        self._last_ctrl_sent = now
+        self._set_state(ConnectionState.CONNECTED, now)
+        self._log("core", "polling")
+
+    def _on_poll_answer(self, request: RequestMessage, answer: AnswerMessage, now: float) -> None:
+        if isinstance(answer, ErrorAnswer):
+            if isinstance(request, GetChargerData) and self._action is not None:
+                self._action.on_charger_error(f"ERROR 0x{answer.error_code:04X}")
+                self._check_action()
+            elif isinstance(request, HealthGetError):
+                self._health_error_answer(request.index, None)
+            elif isinstance(request, PollBaseAnsCmd):
+                self._log("core", "the base refused POLL_BASE_ANS_CMD: the command stays pending")
+            return
+        action = self._action
+        if isinstance(answer, SetVAndGetDeadreckonAnswer):
+            delta = DeadreckonDelta(answer.dx_mm, answer.dy_mm, answer.dtheta_deg)
+            self._pose = integrate_pose(self._pose, delta)
+            last_x, last_y = self._trail[-1]
+            if math.hypot(self._pose.x_mm - last_x, self._pose.y_mm - last_y) >= TRAIL_STEP_MM:
+                self._trail.append((self._pose.x_mm, self._pose.y_mm))
+            self._motion_status = answer.status
+            self._deadreckon_timestamp_ms = answer.timestamp_ms
+            if action is not None:
+                action.on_motion(delta)
+            self._changed.update(("pose", "motion"))
+        elif isinstance(answer, GetBaseBumperDataAnswer):
+            self._bumper_bitmap = answer.bitmap
+            if action is not None:
+                action.on_bumpers(any(self._pressed_bumpers()), now)
+            self._changed.add("bumpers")
+        elif isinstance(answer, GetBaseSensorDataAnswer):
+            self._distances_mm = answer.distances_mm
+            self._changed.add("sensors")
+        elif isinstance(answer, GetBaseStatusAnswer):
+            self._battery_percent = answer.battery_percent
+            self._power_status = answer.power_status
+            if action is not None:
+                action.on_status(answer.power_status, now)
+            self._changed.add("battery")
+        elif isinstance(answer, GetBaseMotorDataAnswer):
+            self._motor_totals_mm = (answer.left_distance_mm, answer.right_distance_mm)
+            self._motion_status = answer.status
+            self._changed.add("motion")
+        elif isinstance(answer, GetChargerDataAnswer):
+            self._charger = answer
+            if action is not None:
+                action.on_charger(answer.probes, now)
+            self._changed.add("charger")
+        elif isinstance(answer, PollBaseCmdAnswer):
+            if answer.command is not None:
+                self._offered_command = answer.command
+                self._log("base", f"base offers {_command_name(answer.command)} (0x{answer.command:02X})")
+                self._followups.appendleft(PollBaseAnsCmd())
+        elif isinstance(answer, HealthGetHealthAnswer):
+            self._on_health(answer)
+        elif isinstance(answer, HealthGetErrorAnswer) and isinstance(request, HealthGetError):
+            self._health_error_answer(request.index, HealthError(answer.error_code, answer.message))
+        elif isinstance(request, PollBaseAnsCmd) and self._offered_command is not None:
+            self._act_on(self._offered_command)
+        self._check_action()
+
+    # ============================================================================== health
+
+    def _on_health(self, answer: HealthGetHealthAnswer) -> None:
+        if answer.error_count == 0 or self._health_collect is not None:
+            if answer.error_count == 0:
+                self._set_health(answer.flags, ())
+            return
+        self._health_flags_pending = answer.flags
+        self._health_collect = [None] * answer.error_count
+        for index in range(answer.error_count):
+            self._followups.append(HealthGetError(index))
+
+    def _health_error_answer(self, index: int, error: HealthError | None) -> None:
+        collect = self._health_collect
+        if collect is None or index >= len(collect):
+            return
+        collect[index] = error
+        if index == len(collect) - 1:
+            self._health_collect = None
+            self._set_health(self._health_flags_pending, tuple(item for item in collect if item is not None))
+
+    def _set_health(self, flags: int | None, errors: tuple[HealthError, ...]) -> None:
+        previous = {error.code for error in self._health.errors}
+        for error in errors:
+            if error.code not in previous:
+                self._log("base", f"health: 0x{error.code:08X} {error.message}")
+                if error.code == WATCHDOG_HEALTH_CODE:
+                    self._stats.watchdog_reported += 1
+        current = {error.code for error in errors}
+        for code in sorted(previous - current):
+            self._log("base", f"health: 0x{code:08X} cleared")
+        if self._health != HealthState(flags, errors):
+            self._health = HealthState(flags, errors)
+            self._changed.add("health")
+
+    # ============================================================================== actions
+
+    def _act_on(self, code: int) -> None:
+        """What the Core does with an external command it has acknowledged (§11.5)."""
+        config = self.config
+        name = _command_name(code)
+        if code == ExternalCommand.CANCEL_ACTION:
+            self._cancel_action("cancelled by CANCEL_ACTION")
+            self._vx = self._omega = 0.0
+            self._changed.add("command")
+            return
+        action: Action
+        if code == ExternalCommand.MOVE_FORWARD:
+            action = DriveDistance(config.move_distance_m, config.move_speed_mps)
+        elif code == ExternalCommand.MOVE_BACKWARD:
+            action = DriveDistance(-config.move_distance_m, config.move_speed_mps)
+        elif code == ExternalCommand.TURN_LEFT:
+            action = TurnAngle(config.turn_angle_deg, config.turn_rate_radps)
+        elif code == ExternalCommand.TURN_RIGHT:
+            action = TurnAngle(-config.turn_angle_deg, config.turn_rate_radps)
+        elif code == ExternalCommand.GO_HOME:
+            action = GoHome(config.docking)
+        else:
+            self._log("core", f"{name} (0x{code:02X}) noted; the Core emulator has nothing to do for it")
+            return
+        self._start_action(action, f"external command {name}")
+
+    def _start_action(self, action: Action, why: str) -> None:
+        if self._estop:
+            self._log("core", f"{action.description} refused: the emergency stop is latched")
+            return
+        if self._state is not ConnectionState.CONNECTED:
+            self._log("core", f"{action.description} refused: the base is not connected")
+            return
+        self._cancel_action(f"replaced by {action.description}")
+        self._action = action
+        if isinstance(action, GoHome):
+            self._next_due.pop("status", None)  # polled faster while docking: from now on
+        self._vx = self._omega = 0.0
+        self._log("core", f"{action.description}: started ({why})")
+        self._changed.add("command")
+
+    def _cancel_action(self, why: str) -> None:
+        action = self._action
+        if action is not None:
+            self._action = None
+            action.finish(f"{action.description}: {why}", failed=True)
+            self._last_outcome = action.outcome
+            self._log("core", action.outcome or why)
+            self._changed.add("command")
+
+    def _check_action(self) -> None:
+        action = self._action
+        if action is not None and action.finished:
+            self._end_action(action)
+
+    def _end_action(self, action: Action) -> None:
+        if self._action is action:
+            self._action = None
+            self._vx = self._omega = 0.0
+            self._last_outcome = action.outcome
+            self._log("core", action.outcome or f"{action.description}: done")
+            self._changed.add("command")
+
+    def _command_state(self) -> CommandState:
+        action = self._action
+        if self._estop:
+            mode = "estop"
+        elif action is not None:
+            mode = action.mode
+        elif self._vx or self._omega:
+            mode = "teleop"
+        else:
+            mode = "idle"
+        return CommandState(
+            self._vx, self._omega, self._estop, mode, None if action is None else action.activity
+        )
+
+    # ====================================================================== events, notify
+
+    def _log(self, direction: str, text: str) -> None:
+        self._event_seq += 1
+        event = CoreEvent(self._event_seq, round(self._elapsed(self._now), 4), direction, text)
+        self._events.append(event)
+        self._changed.add("events")
+        log.debug("%s %.3f %s", direction, event.t_s, text)
+
+    def _notify(self) -> None:
+        with self._lock:
+            if not self._changed:
+                return
+            topics = sorted(self._changed)
+            self._changed.clear()
+            subscribers = list(self._subscribers)
+        for topic in topics:
+            for callback in subscribers:
+                try:
+                    callback(topic)
+                except Exception:  # a subscriber's bug must not stop the Core
+                    log.exception("a Core subscriber failed on %r", topic)
+
+    # ============================================================================= snapshot
+
+    def _pressed_bumpers(self) -> tuple[bool, ...]:
+        bitmap = self._bumper_bitmap
+        geometry = self._geometry
+        if bitmap is None or geometry is None:
+            return ()
+        return tuple(not bitmap >> bumper.bit & 1 for bumper in geometry.bumpers)
+
+    def _link_stats(self) -> dict[str, Any]:
+        stats = self._stats
+        decoder = self._decoder.stats
+        p50, p99 = stats.latency_percentiles_ms()
+        since = self._t0 if self._t0 is not None else self._now
+        return {
+            "connection": {
+                "state": self._state.value,
+                "port": self.port,
+                "since_s": round(self._elapsed(self._state_since), 4),
+                "connects": stats.connects,
+            },
+            "requests": stats.requests,
+            "requests_per_s": round(stats.requests_per_s(self._now, since), 3),
+            "latency_p50_ms": None if p50 is None else round(p50, 3),
+            "latency_p99_ms": None if p99 is None else round(p99, 3),
+            "errors_by_code": {
+                f"0x{code:04X}": count for code, count in sorted(stats.errors_by_code.items())
+            },
+            "checksum_failures": decoder.checksum_errors,
+            "resyncs": decoder.resyncs,
+            "timeouts": stats.timeouts,
+            "watchdog_trips": stats.watchdog_trips,
+            "retries": stats.retries,
+            # Beyond the dashboard schema:
+            "answers": stats.answers,
+            "connect_attempts": stats.connect_attempts,
+            "disconnects": stats.disconnects,
+            "reason": self._state_reason,
+            "invalid_answers": stats.invalid_answers,
+            "malformed_answers": stats.malformed_answers,
+            "stray_answers": stats.stray_answers,
+            "not_synced_reports": stats.not_synced_reports,
+            "flushed_frames": stats.flushed_frames,
+            "watchdog_reported": stats.watchdog_reported,
+            "latency_samples": stats.latency_samples,
+            "decoder": {
+                "frames": decoder.frames,
+                "bytes_discarded": decoder.bytes_discarded,
+                "checksum_errors": decoder.checksum_errors,
+                "oversize": decoder.oversize,
+                "timeouts": decoder.timeouts,
+                "empty_frames": decoder.empty_frames,
+                "resyncs": decoder.resyncs,
+            },
+        }
+
+    def _snapshot(self) -> dict[str, Any]:
+        identity = self._identity
+        geometry = self._geometry
+        base: dict[str, Any] | None = None
+        if identity is not None and self._configured:
+            base = {
+                "model": identity.model,
+                "firmware_version": identity.firmware_version,
+                "hardware_version": identity.hardware_version,
+                "serial": identity.serial,
+                "shape": "circle" if geometry is None else geometry.shape,
+                "radius_mm": 0.0 if geometry is None else geometry.radius_mm,
+                "config_source": self._config_source or "GET_BASE_CONF",
+            }
+        max_vx, max_omega = self.limits()
+        command = self._command_state()
+        status = self._motion_status
+        power = self._power_status
+        bitmap = self._bumper_bitmap
+        distances = self._distances_mm
+        sensors = []
+        bumpers = []
+        cliffs = []
+        if geometry is not None:
+            for sensor in geometry.sensors:
+                reading = None if distances is None else distances[sensor.slot]
+                sensors.append({**sensor.mount.as_dict(), "distance_mm": reading})
+            for bumper in geometry.bumpers:
+                pressed = bitmap is not None and not bitmap >> bumper.bit & 1
+                bumpers.append({**bumper.mount.as_dict(), "bit": bumper.bit, "pressed": pressed})
+            for bit in geometry.cliff_bits:
+                cliffs.append({"bit": bit, "triggered": bitmap is not None and not bitmap >> bit & 1})
+        charger = self._charger
+        flags = self._health.flags
+        link = self._link_stats()
+        schema_link_keys = (
+            "connection",
+            "requests",
+            "requests_per_s",
+            "latency_p50_ms",
+            "latency_p99_ms",
+            "errors_by_code",
+            "checksum_failures",
+            "resyncs",
+            "timeouts",
+            "watchdog_trips",
+            "retries",
+        )
+        return {
+            "schema": SCHEMA_VERSION,
+            "time_s": round(self._elapsed(self._now), 4),
+            "base": base,
+            "limits": {"vx_mps": max_vx, "omega_radps": max_omega},
+            "pose": {
+                "x_mm": round(self._pose.x_mm, 3),
+                "y_mm": round(self._pose.y_mm, 3),
+                "theta_deg": round(self._pose.theta_deg, 4),
+            },
+            "trail": [[round(x, 1), round(y, 1)] for x, y in self._trail],
+            "command": {
+                "vx_mps": command.vx_mps,
+                "omega_radps": command.omega_radps,
+                "estop": command.estop,
+                "mode": command.mode,
+                "activity": command.activity,
+            },
+            "motion": {
+                "status": status,
+                "stall": status is not None and bool(status & MOTION_STALL),
+                "traction_lost": status is not None and bool(status & MOTION_TRACTION_LOST),
+            },
+            "battery": {
+                "percent": self._battery_percent,
+                "power_status": power,
+                "charging": power is not None and bool(power & POWER_CHARGING),
+                "dc_connected": power is not None and bool(power & POWER_DC_CONNECTED),
+                "on_dock": power is not None and bool(power & POWER_ON_DOCK),
+            },
+            "sensors": sensors,
+            "bumper_bitmap": bitmap,
+            "bumpers": bumpers,
+            "cliffs": cliffs,
+            "charger": None
+            if charger is None
+            else {
+                "beacon_count": charger.beacon_count,
+                "probe_count": charger.probe_count,
+                "probes": list(charger.probes),
+            },
+            "health": {
+                "flags": flags,
+                "warning": flags is not None and bool(flags & 1),
+                "error": flags is not None and bool(flags & 2),
+                "fatal": flags is not None and bool(flags & 4),
+                "errors": [{"code": error.code, "message": error.message} for error in self._health.errors],
+            },
+            "events": [
+                {"seq": event.seq, "t_s": event.t_s, "direction": event.direction, "text": event.text}
+                for event in self._events
+            ],
+            "link": {key: link[key] for key in schema_link_keys},
+        }

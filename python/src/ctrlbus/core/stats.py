@@ -1,0 +1,77 @@
+"""Link statistics of a Core session: request rate, answer latency, errors, retries.
+
+Times are the ones the session is given (never a clock read here). Latency is measured from the
+moment a request is handed to the link (the `poll` that returned it) to the moment its answer is
+complete (the `receive` that completed it), so it includes both frames' time on the wire.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter, deque
+from dataclasses import dataclass, field
+
+RATE_WINDOW_S = 5.0  # requests_per_s counts the requests of the last few seconds
+LATENCY_SAMPLES = 500  # percentiles over the last few hundred answers
+
+
+def percentile(sorted_values: list[float], fraction: float) -> float:
+    """Nearest-rank percentile of an ascending, non-empty list (fraction in 0..1)."""
+    rank = max(1, min(len(sorted_values), math.ceil(fraction * len(sorted_values))))
+    return sorted_values[rank - 1]
+
+
+@dataclass
+class LinkStats:
+    """Counters of one Core session (all of them survive reconnects)."""
+
+    requests: int = 0  # frames sent, retries and flushing SYNCs included
+    answers: int = 0  # answers matched to a request
+    retries: int = 0  # requests sent again after a timeout or a transport error
+    timeouts: int = 0  # attempts that got no complete answer in time
+    errors_by_code: Counter[int] = field(default_factory=Counter)
+    invalid_answers: int = 0  # INVALID (0xFF) answers
+    malformed_answers: int = 0  # answers whose payload does not fit the request (a codec error)
+    stray_answers: int = 0  # frames that arrived while no request was outstanding
+    not_synced_reports: int = 0  # ERROR 0x0010: bytes between frames reached the base
+    flushed_frames: int = 0  # frames discarded after a flushing SYNC
+    watchdog_trips: int = 0  # gaps > watchdog_s without a CTRL_BUS request to a connected base
+    watchdog_reported: int = 0  # times the base's health list newly showed 0x01038000
+    connect_attempts: int = 0  # CONNECT_BASE requests (unanswered ones are not counted as timeouts)
+    connects: int = 0  # successful CONNECT_BASE answers
+    disconnects: int = 0  # connections lost (a request failed every attempt)
+    _send_times: deque[float] = field(default_factory=deque)
+    _latencies: deque[float] = field(default_factory=lambda: deque(maxlen=LATENCY_SAMPLES))
+
+    def count_request(self, now: float) -> None:
+        self.requests += 1
+        self._send_times.append(now)
+        self._trim(now)
+
+    def count_answer(self, latency_s: float) -> None:
+        self.answers += 1
+        self._latencies.append(latency_s)
+
+    def _trim(self, now: float) -> None:
+        times = self._send_times
+        while times and times[0] < now - RATE_WINDOW_S:
+            times.popleft()
+
+    def requests_per_s(self, now: float, since: float) -> float:
+        """Requests per second over the last RATE_WINDOW_S (or since `since`, if that is later)."""
+        self._trim(now)
+        span = min(RATE_WINDOW_S, now - since)
+        if span <= 0:
+            return 0.0
+        return sum(1 for t in self._send_times if t > now - span) / span
+
+    def latency_percentiles_ms(self) -> tuple[float | None, float | None]:
+        """(p50, p99) in milliseconds over the recent answers; (None, None) before any."""
+        if not self._latencies:
+            return None, None
+        ordered = sorted(self._latencies)
+        return percentile(ordered, 0.50) * 1000.0, percentile(ordered, 0.99) * 1000.0
+
+    @property
+    def latency_samples(self) -> int:
+        return len(self._latencies)
