@@ -44,7 +44,7 @@ py-test: c-build firmware
 test: c-test c-test-asan lint py-test
 	@echo "make test: all suites passed"
 
-demo: c-build
+demo: c-build firmware
 	@$(PY) -m ctrlbus.demo $(DEMO_ARGS)
 
 size: setup

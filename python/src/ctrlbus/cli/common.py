@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import math
 import re
 import signal
 import sys
@@ -11,22 +12,31 @@ import threading
 from collections.abc import Iterator
 from pathlib import Path
 from types import FrameType
+from typing import TextIO
 
 from ctrlbus.errors import UsageError
-from ctrlbus.link import DEFAULT_BAUD, parse_host_port
+from ctrlbus.link import DEFAULT_BAUD, Link, PtyLink, TcpServerLink, open_link, parse_host_port, serve_link
 
 __all__ = [
     "DEFAULT_BAUD",
     "add_baud_argument",
+    "add_color_argument",
     "add_dashboard_arguments",
+    "add_decoder_arguments",
+    "add_direction_argument",
     "add_port_argument",
     "add_serve_arguments",
+    "decoder_settings",
+    "endpoint_address",
     "format_hex",
     "hex_or_binary",
+    "open_endpoint",
     "parse_hex_text",
     "parse_host_port",
+    "positive_number",
     "read_input_bytes",
     "stop_on_signals",
+    "use_color",
     "write_output",
 ]
 
@@ -183,3 +193,100 @@ def stop_on_signals(stop: threading.Event) -> Iterator[None]:
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+
+
+# --- endpoints, directions, decoder settings, colour ------------------------------------------
+
+ENDPOINT_HELP = (
+    "a pyserial URL (/dev/ttyUSB0, socket://HOST:PORT), 'pty' (create a pseudo-terminal and print "
+    "its path) or 'listen:HOST:PORT' (accept one TCP connection at a time; port 0 picks a free one)"
+)
+
+
+def open_endpoint(spec: str, baud: int = DEFAULT_BAUD) -> Link:
+    """Open one end of a link the way the tools that sit on a link (spy, capture, replay) take it:
+    'pty', 'listen:HOST:PORT' or a pyserial URL. UsageError / LinkError with one line otherwise."""
+    if spec == "pty":
+        return serve_link(pty=True)
+    if spec.startswith("listen:"):
+        return serve_link(listen=spec[len("listen:") :])
+    if not spec:
+        raise UsageError("empty port: give a URL, 'pty' or 'listen:HOST:PORT'")
+    return open_link(spec, baud)
+
+
+def endpoint_address(link: Link) -> str:
+    """What to tell a person about an opened endpoint: 'pty: /dev/pts/N', 'listen: HOST:PORT' or
+    'port: URL' (the form `ctrlbus sim` prints)."""
+    if isinstance(link, PtyLink):
+        return f"pty: {link.path}"
+    if isinstance(link, TcpServerLink):
+        host = f"[{link.host}]" if ":" in str(link.host) else str(link.host)
+        return f"listen: {host}:{link.port}"
+    return f"port: {link.name}"
+
+
+def add_direction_argument(parser: argparse.ArgumentParser, *, default: str | None, help_text: str) -> None:
+    """--direction core|base: who sent the bytes (core = core→base, base = base→core)."""
+    parser.add_argument("--direction", choices=("core", "base"), default=default, help=help_text)
+
+
+def positive_number(option: str, text: str, *, allow_zero: bool = False) -> float:
+    """A finite number > 0 (or >= 0 with allow_zero); UsageError naming the option otherwise."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise UsageError(f"{option} wants a number, got {text!r}") from None
+    if not math.isfinite(value) or value < 0 or (value == 0 and not allow_zero):
+        bound = ">= 0" if allow_zero else "> 0"
+        raise UsageError(f"{option} wants a finite number {bound}, got {text!r}")
+    return value
+
+
+def add_decoder_arguments(parser: argparse.ArgumentParser, *, timeout_ms: int) -> None:
+    """The stream decoder's settings (docs/protocol.md §7.1) for the tools that decode."""
+    parser.add_argument(
+        "--timeout-ms",
+        default=str(timeout_ms),
+        metavar="N",
+        help=f"inter-byte timeout of the stream decoder, applied with the chunks' times (default "
+        f"{timeout_ms}; 0 switches it off)",
+    )
+    parser.add_argument(
+        "--max-frame",
+        default="65539",
+        metavar="N",
+        help="largest whole frame accepted, 5..65539 (default 65539; a base uses its buffer size, 512)",
+    )
+
+
+def decoder_settings(args: argparse.Namespace) -> tuple[float, int]:
+    """(timeout in seconds, max_frame) from add_decoder_arguments' options, checked."""
+    timeout_ms = positive_number("--timeout-ms", args.timeout_ms, allow_zero=True)
+    try:
+        max_frame = int(args.max_frame, 0)
+    except ValueError:
+        raise UsageError(f"--max-frame wants an integer, got {args.max_frame!r}") from None
+    if not 5 <= max_frame <= 65539:
+        raise UsageError(f"--max-frame must be 5..65539, got {max_frame}")
+    return timeout_ms / 1000.0, max_frame
+
+
+def add_color_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--color",
+        choices=("auto", "always", "never"),
+        default="auto",
+        help="colour the output: auto (when stdout is a terminal, default), always, never",
+    )
+
+
+def use_color(choice: str, stream: TextIO | None = None) -> bool:
+    """Whether to colour: 'always', 'never', or 'auto' = the stream is a terminal."""
+    if choice == "always":
+        return True
+    if choice == "never":
+        return False
+    stream = stream if stream is not None else sys.stdout
+    isatty = getattr(stream, "isatty", None)
+    return bool(isatty is not None and isatty())
