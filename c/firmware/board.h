@@ -11,11 +11,13 @@
 /* Called from the UART0 RX interrupt with each received byte. */
 typedef void (*board_rx_handler_t)(void *context, uint8_t byte);
 
-/* Start SysTick at 1 kHz and set UART0 to 115200 8N1 with the RX interrupt enabled.
- * Received bytes go to `rx_handler(context, byte)` in interrupt context. */
+/* Start the clock (APB timer 0, free-running), SysTick at 1 kHz (it wakes the main loop) and set
+ * UART0 to 115200 8N1 with the RX interrupt enabled. Received bytes go to
+ * `rx_handler(context, byte)` in interrupt context. */
 void board_init(board_rx_handler_t rx_handler, void *context);
 
-/* Milliseconds since board_init; wraps after 49.7 days. ISR-safe (one aligned word read). */
+/* Milliseconds since board_init; wraps after 49.7 days. Read from a hardware counter, so no time
+ * is lost when interrupts are late. Main loop only, and at least every 171 s (the counter's wrap). */
 uint32_t board_now_ms(void);
 
 /* Send bytes on UART0, waiting for the transmit holding register for each one. Main loop only. */

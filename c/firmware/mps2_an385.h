@@ -41,6 +41,14 @@
 #define CMSDK_UART_INT_TX 0x01u
 #define CMSDK_UART_INT_RX 0x02u
 
+/* CMSDK APB timer 0 (ARM DDI0479, "APB timer"): a 32-bit down-counter at the peripheral clock,
+ * reloaded from RELOAD when it reaches zero. */
+#define MPS2_TIMER0_BASE 0x40000000u
+#define CMSDK_TIMER_CTRL(base) MPS2_REG((base) + 0x00u)
+#define CMSDK_TIMER_VALUE(base) MPS2_REG((base) + 0x04u)
+#define CMSDK_TIMER_RELOAD(base) MPS2_REG((base) + 0x08u)
+#define CMSDK_TIMER_CTRL_ENABLE 0x1u
+
 /* Cortex-M3 system control space. */
 #define SYST_CSR MPS2_REG(0xE000E010u)
 #define SYST_RVR MPS2_REG(0xE000E014u)

@@ -3,21 +3,27 @@
 The firmware is built here with its own Makefile (make -C c/firmware), so `make test` always runs
 the current sources. QEMU's UART0 is a Unix socket in a fresh directory: no port to collide with.
 
-What runs now is the board bring-up probe, uart-echo.elf: vector table and start-up, the UART0
-RX interrupt (IRQ 0), the interrupt-to-main-loop ring and the TX path, proven by echoing bytes.
+Two images run: the board bring-up probe, uart-echo.elf (vector table and start-up, the UART0 RX
+interrupt (IRQ 0), the interrupt-to-main-loop ring and the TX path, proven by echoing bytes), and
+ctrlbus-base.elf, the C base stack serving the simulated base (the acceptance test of issue 3:
+the firmware answers the Core's requests over the emulated UART, and its motor watchdog shows).
 """
 
 from __future__ import annotations
 
 import random
 import shutil
+import struct
 import subprocess
 import tempfile
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 from base_harness import REPO, FramePeer, Process, connect_unix
+
+from ctrlbus.frame import Frame, encode
 
 FIRMWARE_SOURCES = REPO / "c" / "firmware"
 FIRMWARE_BUILD = REPO / "build" / "firmware"
@@ -54,21 +60,35 @@ def firmware_images() -> Path:
     return FIRMWARE_BUILD
 
 
-@pytest.fixture
-def echo_uart(firmware_images: Path) -> Iterator[FramePeer]:
-    """The bring-up probe running in QEMU, and the test's end of its UART0."""
+def run_in_qemu(kernel: Path) -> Iterator[FramePeer]:
+    """Run `kernel` in QEMU and yield the test's end of its UART0; always stops QEMU."""
     workdir = Path(tempfile.mkdtemp(prefix="ctrlbus-qemu-"))  # short: socket paths max 107 bytes
     uart_socket = workdir / "uart0.sock"
-    qemu = Process(qemu_command(firmware_images / "uart-echo.elf", uart_socket), workdir / "qemu.log", False)
+    qemu = Process(qemu_command(kernel, uart_socket), workdir / "qemu.log", False)
     sock = None
     try:
         sock = connect_unix(uart_socket, qemu)
-        yield FramePeer.over_socket(sock, "QEMU UART0")
+        yield FramePeer.over_socket(sock, f"QEMU UART0 of {kernel.name}")
     finally:
         if sock is not None:
             sock.close()
         qemu.stop()
         shutil.rmtree(workdir, ignore_errors=True)
+
+
+@pytest.fixture
+def echo_uart(firmware_images: Path) -> Iterator[FramePeer]:
+    """The bring-up probe running in QEMU, and the test's end of its UART0."""
+    yield from run_in_qemu(firmware_images / "uart-echo.elf")
+
+
+@pytest.fixture
+def base_uart(firmware_images: Path) -> Iterator[FramePeer]:
+    """The ctrlbus base firmware running in QEMU, and the test's end of its UART0."""
+    kernel = firmware_images / "ctrlbus-base.elf"
+    if not kernel.exists():
+        pytest.fail(f"{kernel} was not built: the firmware Makefile says why (make -C c/firmware)")
+    yield from run_in_qemu(kernel)
 
 
 def test_echo_probe_returns_every_byte_value(echo_uart: FramePeer) -> None:
@@ -83,3 +103,100 @@ def test_echo_probe_loses_nothing_in_a_burst_longer_than_its_ring(echo_uart: Fra
     data = random.Random(3).randbytes(4096)
     echo_uart.send(data)
     assert echo_uart.read_bytes(len(data)) == data
+
+
+# --- the base firmware ---------------------------------------------------------------------------
+
+CMD_SYNC, CMD_ECHO, CMD_OK, CMD_ERROR, CMD_CTRL_BUS = 0x00, 0x01, 0x02, 0x03, 0xF8
+HEALTH_WARNING = 0x01
+WATCHDOG_TRIPPED = 0x01038000  # docs/protocol.md §10.3
+
+
+def ok_payload(answer: Frame, size: int) -> bytes:
+    """The payload of an OK answer of `size` bytes in a long frame (the reference's way)."""
+    assert answer.cmd == CMD_OK, f"expected OK, got CMD 0x{answer.cmd:02X} payload {answer.payload.hex(' ')}"
+    assert len(answer.payload) == size, f"OK payload of {len(answer.payload)} bytes, expected {size}"
+    assert answer.long
+    return answer.payload
+
+
+def set_velocity(vx_mps: float, omega_radps: float) -> bytes:
+    return bytes((0x41,)) + struct.pack("<iii", round(vx_mps * 65536), 0, round(omega_radps * 65536))
+
+
+def test_base_firmware_answers_the_core(base_uart: FramePeer) -> None:
+    connect = ok_payload(base_uart.request(CMD_CTRL_BUS, bytes((0x10, 0x01))), 28)
+    model, _firmware_version, hardware_version = struct.unpack_from("<12sHH", connect)
+    assert model.rstrip(b"\0") == b"ctrlbus sim"
+    assert hardware_version == 2  # the QEMU firmware (posix_base says 1)
+
+    conf = ok_payload(base_uart.request(CMD_CTRL_BUS, bytes((0x20,))), 264)
+    base_type, radius_q8, motor_type, sensor_num = struct.unpack_from("<BIBB", conf)
+    assert (base_type, radius_q8, motor_type, sensor_num) == (0, 170 * 256, 0, 5)
+    assert conf[135] == 2  # bumper_num
+
+    # Drive forwards for a while (well within the watchdog): the deadreckon deltas add up.
+    dx_total = 0.0
+    for _ in range(6):
+        dx, dy, dtheta, _status = struct.unpack(
+            "<iiiB", ok_payload(base_uart.request(CMD_CTRL_BUS, set_velocity(0.2, 0.0)), 13)
+        )
+        dx_total += dx / 65536
+        assert dy == 0 and dtheta == 0
+        time.sleep(0.05)
+    assert dx_total > 5.0, f"the simulated robot did not move: dx {dx_total:.2f} mm"
+    ok_payload(base_uart.request(CMD_CTRL_BUS, set_velocity(0.0, 0.0)), 13)
+
+    flags, error_count = ok_payload(base_uart.request(CMD_CTRL_BUS, bytes((0x90, 0x01))), 2)
+    assert (flags, error_count) == (0, 0)
+
+    # 300 bytes of ECHO: more than a standard frame holds, copied back verbatim as the long frame.
+    echo = encode(CMD_ECHO, bytes(range(256)) + bytes(range(44)))
+    base_uart.send(echo)
+    assert base_uart.read_bytes(len(echo)) == echo
+
+    # A corrupted SET_BASE_MOTOR is refused with ERROR 0x0040 and not executed. (First let the
+    # robot come to rest: it brakes at its acceleration limit.)
+    time.sleep(0.3)
+    before = ok_payload(base_uart.request(CMD_CTRL_BUS, bytes((0x31,))), 9)
+    corrupted = bytearray(encode(CMD_CTRL_BUS, bytes((0x40,)) + struct.pack("<iiii", 300, 300, 0, 0)))
+    corrupted[-1] ^= 0x01
+    base_uart.send(bytes(corrupted))
+    answer = base_uart.read_frame()
+    assert (answer.cmd, answer.payload) == (CMD_ERROR, struct.pack("<H", 0x0040))
+    time.sleep(0.3)
+    after = ok_payload(base_uart.request(CMD_CTRL_BUS, bytes((0x31,))), 9)
+    assert after[:8] == before[:8], "the wheels moved on a corrupted request"
+
+
+def test_base_firmware_watchdog_stops_the_wheels_and_tells_the_core(base_uart: FramePeer) -> None:
+    ok_payload(base_uart.request(CMD_CTRL_BUS, bytes((0x40,)) + struct.pack("<iiii", -150, -150, 0, 0)), 0)
+    # SYNC only for 1.3 s: it does not feed the motor watchdog (1000 ms).
+    deadline = time.monotonic() + 1.3
+    while time.monotonic() < deadline:
+        base_uart.send(bytes.fromhex("10 01 00 11"))
+        assert base_uart.read_bytes(4) == bytes.fromhex("10 01 00 11")
+        time.sleep(0.1)
+    flags, error_count = ok_payload(base_uart.request(CMD_CTRL_BUS, bytes((0x90, 0x01))), 2)
+    assert flags & HEALTH_WARNING and error_count >= 1
+    codes = []
+    for index in range(error_count):
+        entry = ok_payload(base_uart.request(CMD_CTRL_BUS, bytes((0x90, 0x02, index))), 36)
+        codes.append(struct.unpack_from("<I", entry)[0])
+    assert WATCHDOG_TRIPPED in codes
+    first = ok_payload(base_uart.request(CMD_CTRL_BUS, bytes((0x31,))), 9)
+    time.sleep(0.3)
+    second = ok_payload(base_uart.request(CMD_CTRL_BUS, bytes((0x31,))), 9)
+    left, right, _status = struct.unpack("<iiB", second)
+    assert left < 0 and right < 0, "the wheels never moved before the watchdog stopped them"
+    assert first[:8] == second[:8], "the wheels kept turning after the watchdog tripped"
+    # The Core clears the warning.
+    ok_payload(base_uart.request(CMD_CTRL_BUS, bytes((0x90, 0x03)) + struct.pack("<I", WATCHDOG_TRIPPED)), 0)
+
+
+def test_base_firmware_loses_nothing_in_a_burst_longer_than_its_ring(base_uart: FramePeer) -> None:
+    # 10 kB of ECHO requests in one write, ten times the stack's receive ring: every byte goes
+    # through the UART interrupt into the ring while the main loop answers earlier requests.
+    requests = b"".join(encode(CMD_ECHO, bytes((i % 256,)) * (i % 60)) for i in range(300))
+    base_uart.send(requests)
+    assert base_uart.read_bytes(len(requests)) == requests

@@ -18,6 +18,9 @@
 /* The longest the loop sleeps: bounds how late the watchdog and the simulation run. */
 #define LOOP_PERIOD_MS 5
 #define POSIX_HARDWARE_VERSION 1u /* the QEMU firmware says 2 */
+/* A host reads its link in bursts (scheduling, USB-serial latency timers): the inter-byte timeout
+ * of a host program (docs/protocol.md §7.6), not an MCU's 10 ms. */
+#define POSIX_FRAME_TIMEOUT_MS 100u
 
 static volatile sig_atomic_t stop_requested;
 
@@ -119,6 +122,7 @@ int main(int argc, char **argv)
     memset(&glue_options, 0, sizeof glue_options);
     glue_options.watchdog_ms = options.watchdog_ms;
     glue_options.watchdog_off = options.watchdog_ms == 0;
+    glue_options.frame_timeout_ms = POSIX_FRAME_TIMEOUT_MS;
     glue_options.hardware_version = POSIX_HARDWARE_VERSION;
     glue_options.time_scale_percent = options.time_scale_percent;
     glue_options.sdk2020_sizes = options.profile == PROFILE_SDK2020;
@@ -146,7 +150,7 @@ int main(int argc, char **argv)
             (void)fprintf(stderr, "posix_base: connection %llu is now the link\n",
                           (unsigned long long)output.link.connections);
         }
-        uint8_t received[1024];
+        uint8_t received[BASE_GLUE_RX_RING_SIZE / 2u]; /* the ring holds one byte less than its size */
         long got = 0;
         /* Poll after every chunk, so a burst longer than the stack's receive ring is parsed as it
          * comes instead of overflowing the ring. */

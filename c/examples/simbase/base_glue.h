@@ -11,10 +11,10 @@
  * receive ring, the simulation and its clock, and the handlers that answer each request from the
  * simulation (simbase_answers.h) or apply it to the simulation.
  *
- * STATUS: this is the integration point with the base stack, whose header c/include/ctrlbus/base.h
- * is not written yet. The interface below is what posix_base/main.c and firmware/base_main.c call;
- * base_glue.c (the handlers registered with the stack) is written once base.h exists. Until then
- * neither program is built (see c/examples/CMakeLists.txt and c/firmware/Makefile).
+ * The simulation runs on its own clock (time_scale_percent of real time); the stack's watchdog and
+ * frame timeout run on real time. Health: the battery's condition is re-evaluated at every poll
+ * (the reference does it every 100 ms) and registered as the reference does (0x01020100 below
+ * 30 %, 0x02020100 below 10 %), next to the stack's own motor-watchdog warning.
  */
 #ifndef CTRLBUS_EXAMPLES_BASE_GLUE_H
 #define CTRLBUS_EXAMPLES_BASE_GLUE_H
@@ -34,6 +34,7 @@
 
 typedef struct {
     uint32_t watchdog_ms;         /* motor watchdog period; 0: the stack's default (1000 ms) */
+    uint16_t frame_timeout_ms;    /* inter-byte timeout; 0: the stack's default (10 ms, an MCU's) */
     bool watchdog_off;            /* no motor watchdog at all */
     uint32_t time_scale_percent;  /* simulated time per real time; 0 means 100 (real time) */
     bool sdk2020_sizes;           /* CONNECT 39 and deadreckon 17 bytes instead of 28 and 13 */
@@ -45,16 +46,18 @@ typedef struct {
     void *reboot_context;
 } base_glue_options_t;
 
+#define BASE_GLUE_HEALTH_ENTRIES 4u
+
 /* Caller-owned (static in both hosts); fields are private to base_glue.c. */
 typedef struct {
-    /* The base stack instance and the buffers it is given go here (the stack's receive ring of
-     * BASE_GLUE_RX_RING_SIZE bytes and its frame buffer of BASE_GLUE_FRAME_BUFFER_SIZE bytes). */
+    ctrlbus_base_t base;
+    ctrlbus_base_config_t config; /* the stack keeps a pointer to it */
     uint8_t rx_ring[BASE_GLUE_RX_RING_SIZE];
     uint8_t frame_buffer[BASE_GLUE_FRAME_BUFFER_SIZE];
+    ctrlbus_base_health_entry_t health[BASE_GLUE_HEALTH_ENTRIES];
     simbase_t sim;
     simbase_identity_t identity;
     base_glue_options_t options;
-    uint32_t boot_ms;           /* for the 2020 SDK's deadreckon timestamp */
     uint32_t last_poll_ms;      /* the simulation has been stepped up to here */
     uint32_t sim_remainder;     /* scaled time not yet stepped, in 1/100 ms */
     uint8_t probes[SIMBASE_PROBE_COUNT]; /* GET_CHARGER_DATA answer storage */

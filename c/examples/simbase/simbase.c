@@ -131,9 +131,9 @@ void simbase_init(simbase_t *sim, const simbase_config_t *config)
     }
 
     float start_x = min_f(radius(sim) + START_DISTANCE_FROM_DOCK_MM, room_width(sim) / 2.0f);
-    diffdrive_pose_reset(&sim->pose, start_x, room_depth(sim) / 2.0f);
+    ctrlbus_diffdrive_pose_reset(&sim->pose, start_x, room_depth(sim) / 2.0f);
     sim->pose.heading_cos = -1.0f; /* facing the dock */
-    diffdrive_pose_reset(&sim->since_deadreckon, 0.0f, 0.0f);
+    ctrlbus_diffdrive_pose_reset(&sim->since_deadreckon, 0.0f, 0.0f);
     sim->battery_micropercent = sim->config.battery_start_percent * MICROPERCENT_PER_PERCENT;
 }
 
@@ -171,7 +171,7 @@ void simbase_set_velocity(simbase_t *sim, int32_t vx_mps_q16, int32_t omega_radp
 {
     int32_t left = 0;
     int32_t right = 0;
-    diffdrive_wheel_speeds(vx_mps_q16, omega_radps_q16, sim->config.half_track_mm, &left, &right);
+    ctrlbus_diffdrive_wheel_speeds(vx_mps_q16, omega_radps_q16, 2 * sim->config.half_track_mm, &left, &right);
     simbase_set_wheel_speeds(sim, left, right);
 }
 
@@ -275,9 +275,9 @@ static void step_once(simbase_t *sim, float dt_s)
 
     float left_mm = sim->left_mm_s * dt_s;
     float right_mm = sim->right_mm_s * dt_s;
-    float half_track = (float)sim->config.half_track_mm;
-    diffdrive_pose_t next = sim->pose;
-    diffdrive_pose_advance(&next, left_mm, right_mm, half_track);
+    float wheel_track = 2.0f * (float)sim->config.half_track_mm;
+    ctrlbus_diffdrive_pose_t next = sim->pose;
+    ctrlbus_diffdrive_pose_advance(&next, left_mm, right_mm, wheel_track);
     float fraction = free_fraction(sim, sim->pose.x_mm, sim->pose.y_mm, next.x_mm - sim->pose.x_mm,
                                    next.y_mm - sim->pose.y_mm);
     if (fraction < 1.0f) {
@@ -288,7 +288,7 @@ static void step_once(simbase_t *sim, float dt_s)
         sim->left_mm_s *= fraction;
         sim->right_mm_s *= fraction;
         next = sim->pose;
-        diffdrive_pose_advance(&next, left_mm, right_mm, half_track);
+        ctrlbus_diffdrive_pose_advance(&next, left_mm, right_mm, wheel_track);
         sim->motor_status |= SIMBASE_MOTOR_STALL;
     } else {
         sim->motor_status &= (uint8_t)~SIMBASE_MOTOR_STALL;
@@ -298,7 +298,7 @@ static void step_once(simbase_t *sim, float dt_s)
     next.x_mm = min_f(max_f(next.x_mm, r), room_width(sim) - r);
     next.y_mm = min_f(max_f(next.y_mm, r), room_depth(sim) - r);
     sim->pose = next;
-    diffdrive_pose_advance(&sim->since_deadreckon, left_mm, right_mm, half_track);
+    ctrlbus_diffdrive_pose_advance(&sim->since_deadreckon, left_mm, right_mm, wheel_track);
     sim->left_travel_um += mm_to_um(left_mm);
     sim->right_travel_um += mm_to_um(right_mm);
 
@@ -318,8 +318,8 @@ void simbase_place(simbase_t *sim, int32_t x_mm, int32_t y_mm, int32_t heading_d
     float r = radius(sim);
     float x = min_f(max_f((float)x_mm, r), room_width(sim) - r);
     float y = min_f(max_f((float)y_mm, r), room_depth(sim) - r);
-    diffdrive_pose_reset(&sim->pose, x, y);
-    diffdrive_pose_turn(&sim->pose, (float)(heading_deg % 360) * RADIANS_PER_DEGREE);
+    ctrlbus_diffdrive_pose_reset(&sim->pose, x, y);
+    ctrlbus_diffdrive_pose_turn(&sim->pose, (float)(heading_deg % 360) * RADIANS_PER_DEGREE);
     sim->pose.turned_rad = 0.0f;
     sim->target_left_mm_s = 0.0f;
     sim->target_right_mm_s = 0.0f;
@@ -344,7 +344,7 @@ void simbase_step(simbase_t *sim, uint32_t dt_ms)
 
 void simbase_take_deadreckon(simbase_t *sim, int32_t *dx_mm_q16, int32_t *dy_mm_q16, int32_t *dtheta_deg_q16)
 {
-    diffdrive_take_deadreckon(&sim->since_deadreckon, dx_mm_q16, dy_mm_q16, dtheta_deg_q16);
+    ctrlbus_diffdrive_take_deadreckon(&sim->since_deadreckon, dx_mm_q16, dy_mm_q16, dtheta_deg_q16);
 }
 
 static int32_t um_to_mm(int64_t um)

@@ -29,7 +29,7 @@
 
 #include <stdint.h>
 
-#include "diffdrive.h"
+#include "ctrlbus/diffdrive.h"
 
 #define SIMBASE_SENSOR_COUNT 5u
 #define SIMBASE_BUMPER_COUNT 2u
@@ -77,8 +77,8 @@ typedef struct {
 /* The simulation state; fields are private to simbase.c. */
 typedef struct {
     simbase_config_t config; /* with defaults filled in */
-    diffdrive_pose_t pose;   /* robot centre in room coordinates */
-    diffdrive_pose_t since_deadreckon;
+    ctrlbus_diffdrive_pose_t pose;   /* robot centre in room coordinates */
+    ctrlbus_diffdrive_pose_t since_deadreckon;
     float target_left_mm_s;
     float target_right_mm_s;
     float left_mm_s;

@@ -1,9 +1,9 @@
-/* Unit tests of the simulated base and the differential-drive math it uses. */
+/* Unit tests of the simulated base (its differential-drive math is the library's, tested in
+ * c/tests/test_diffdrive.c). */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
 
-#include "diffdrive.h"
 #include "simbase.h"
 
 static int failures;
@@ -28,100 +28,6 @@ static int failures;
     } while (0)
 
 #define Q16 65536.0
-#define PI 3.14159265358979323846
-
-static void test_wheel_speeds(void)
-{
-    int32_t left = 0;
-    int32_t right = 0;
-    /* The reference's example command: vx 0.2 m/s, omega 0.5 rad/s, half track 118 mm (v4). */
-    diffdrive_wheel_speeds(13107, 32768, 118, &left, &right);
-    CHECK(left == 141);
-    CHECK(right == 259);
-    diffdrive_wheel_speeds(-13107, -32768, 118, &left, &right);
-    CHECK(left == -141);
-    CHECK(right == -259);
-    /* Turning on the spot, half track 80 mm (SDP Mini): 1 rad/s -> 80 mm/s per wheel. */
-    diffdrive_wheel_speeds(0, 65536, 80, &left, &right);
-    CHECK(left == -80);
-    CHECK(right == 80);
-    /* Saturates instead of wrapping. */
-    diffdrive_wheel_speeds(INT32_MAX, INT32_MAX, INT32_MAX, &left, &right);
-    CHECK(left == INT32_MIN);
-    CHECK(right == INT32_MAX);
-}
-
-static void test_straight_and_turns(void)
-{
-    diffdrive_pose_t pose;
-    int32_t dx = 0;
-    int32_t dy = 0;
-    int32_t dtheta = 0;
-
-    diffdrive_pose_reset(&pose, 0.0f, 0.0f);
-    diffdrive_pose_advance(&pose, 1000.0f, 1000.0f, 118.0f);
-    diffdrive_take_deadreckon(&pose, &dx, &dy, &dtheta);
-    CHECK(dx == 1000 * 65536);
-    CHECK(dy == 0);
-    CHECK(dtheta == 0);
-    /* Taking restarts from zero. */
-    diffdrive_take_deadreckon(&pose, &dx, &dy, &dtheta);
-    CHECK(dx == 0 && dy == 0 && dtheta == 0);
-
-    /* A quarter turn on the spot, then 100 mm: the motion is along +y of the starting frame. */
-    float quarter = (float)(PI / 2.0 * 118.0);
-    diffdrive_pose_advance(&pose, -quarter, quarter, 118.0f);
-    diffdrive_pose_advance(&pose, 100.0f, 100.0f, 118.0f);
-    diffdrive_take_deadreckon(&pose, &dx, &dy, &dtheta);
-    CHECK_NEAR(dx / Q16, 0.0, 0.01);
-    CHECK_NEAR(dy / Q16, 100.0, 0.01);
-    CHECK_NEAR(dtheta / Q16, 90.0, 0.001);
-
-    /* Clockwise is negative, and a full turn is 360 degrees, not 0. */
-    float full = (float)(2.0 * PI * 118.0);
-    diffdrive_pose_advance(&pose, full, -full, 118.0f);
-    diffdrive_take_deadreckon(&pose, &dx, &dy, &dtheta);
-    CHECK_NEAR(dtheta / Q16, -360.0, 0.01);
-    CHECK_NEAR(dx / Q16, 0.0, 0.01);
-    CHECK_NEAR(dy / Q16, 0.0, 0.01);
-}
-
-static void test_arc(void)
-{
-    /* A quarter circle of radius 500 mm anticlockwise ends at (500, 500), whether it is
-     * integrated in one step or in many. */
-    const double radius = 500.0;
-    const double half_track = 118.0;
-    const float left = (float)((radius - half_track) * PI / 2.0);
-    const float right = (float)((radius + half_track) * PI / 2.0);
-    const int pieces[] = {1, 7, 100};
-    for (size_t i = 0; i < sizeof pieces / sizeof pieces[0]; i++) {
-        diffdrive_pose_t pose;
-        diffdrive_pose_reset(&pose, 0.0f, 0.0f);
-        for (int k = 0; k < pieces[i]; k++) {
-            diffdrive_pose_advance(&pose, left / (float)pieces[i], right / (float)pieces[i], (float)half_track);
-        }
-        int32_t dx = 0;
-        int32_t dy = 0;
-        int32_t dtheta = 0;
-        diffdrive_take_deadreckon(&pose, &dx, &dy, &dtheta);
-        CHECK_NEAR(dx / Q16, radius, 0.05);
-        CHECK_NEAR(dy / Q16, radius, 0.05);
-        CHECK_NEAR(dtheta / Q16, 90.0, 0.001);
-    }
-}
-
-static void test_deadreckon_saturates(void)
-{
-    diffdrive_pose_t pose;
-    diffdrive_pose_reset(&pose, 0.0f, 0.0f);
-    diffdrive_pose_advance(&pose, 1e6f, 1e6f, 118.0f); /* 1 km: beyond Q16 mm */
-    int32_t dx = 0;
-    int32_t dy = 0;
-    int32_t dtheta = 0;
-    diffdrive_take_deadreckon(&pose, &dx, &dy, &dtheta);
-    CHECK(dx == INT32_MAX);
-}
 
 static void test_defaults_and_start(void)
 {
@@ -366,10 +272,6 @@ static void test_long_step_is_bounded(void)
 
 int main(void)
 {
-    test_wheel_speeds();
-    test_straight_and_turns();
-    test_arc();
-    test_deadreckon_saturates();
     test_defaults_and_start();
     test_acceleration_limit();
     test_velocity_command();

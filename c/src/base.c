@@ -1,0 +1,667 @@
+/* The base stack (see ctrlbus/base.h): receive ring, dispatch, answers, watchdog, limits. */
+#include "ctrlbus/base.h"
+
+#include <string.h>
+
+#include "ctrlbus/diffdrive.h"
+
+/* base->flags */
+#define FLAG_WATCHDOG_EXPIRED 0x01u /* the current silence has been acted on */
+#define FLAG_MOTION_COMMANDED 0x02u /* the last motion command passed on was not zero */
+#define FLAG_REBOOTED 0x04u         /* a reboot handler returned: drop the input, start afresh */
+
+/* Time differences at or beyond this are taken as a clock that went backwards. */
+#define TIME_BACKWARDS 0x80000000u
+#define HEALTH_MESSAGE_MAX (CTRLBUS_HEALTH_MESSAGE_LEN - 1u)
+#define HEALTH_LEVEL_BITS (CTRLBUS_HEALTH_WARNING | CTRLBUS_HEALTH_ERROR | CTRLBUS_HEALTH_FATAL)
+
+/* What a base answers to each decoder event (docs/protocol.md §8.1); 0: nothing. */
+static const uint16_t EVENT_ERRORS[] = {
+    [CTRLBUS_RX_GARBAGE] = CTRLBUS_WIRE_ERR_NOT_SYNCHRONISED,
+    [CTRLBUS_RX_CHECKSUM_ERROR] = CTRLBUS_WIRE_ERR_CHECKSUM,
+    [CTRLBUS_RX_OVERSIZE] = CTRLBUS_WIRE_ERR_TOO_LONG,
+    [CTRLBUS_RX_TIMEOUT] = 0,
+    [CTRLBUS_RX_EMPTY_FRAME] = CTRLBUS_WIRE_ERR_FORMAT,
+};
+
+/* The external commands a Core knows (docs/protocol.md §5.12). */
+static const uint8_t EXTERNAL_COMMANDS[] = {0x51, 0x52, 0x53, 0x80, 0x81, 0x82, 0x90,
+                                            0xA0, 0xA1, 0xA2, 0xA3, 0xA4, 0xAF, 0xB0};
+
+static void set_flags(ctrlbus_base_t *base, uint8_t flags)
+{
+    base->flags = (uint8_t)(base->flags | flags);
+}
+
+static void clear_flags(ctrlbus_base_t *base, uint8_t flags)
+{
+    base->flags = (uint8_t)(base->flags & (uint8_t)~flags);
+}
+
+/* ---- receive ring --------------------------------------------------------------------------- */
+
+size_t ctrlbus_base_feed(ctrlbus_base_t *base, const uint8_t *data, size_t len)
+{
+    if (base == NULL || base->config == NULL || data == NULL) {
+        return 0;
+    }
+    uint8_t *ring = base->config->rx_ring;
+    uint16_t size = base->config->rx_ring_size;
+    uint16_t head = base->rx_head; /* ours: only feed writes it */
+    uint16_t tail = base->rx_tail; /* one snapshot: space freed later is used by the next feed */
+    size_t taken = 0;
+    while (taken < len) {
+        uint16_t next = (uint16_t)(head + 1u == size ? 0u : head + 1u);
+        if (next == tail) {
+            base->rx_dropped += (uint32_t)(len - taken);
+            break;
+        }
+        ring[head] = data[taken++];
+        head = next;
+    }
+    CTRLBUS_RING_FENCE(); /* the bytes are in the ring before the index says so */
+    base->rx_head = head;
+    return taken;
+}
+
+/* ---- health registry ------------------------------------------------------------------------ */
+
+/* With no storage the registry can only hold the watchdog's warning, which needs none. */
+static uint32_t health_code_at(const ctrlbus_base_t *base, uint8_t index)
+{
+    const ctrlbus_base_health_entry_t *entries = base->config->health_entries;
+    return entries != NULL ? entries[index].code : CTRLBUS_HEALTH_WATCHDOG_TRIPPED;
+}
+
+static const char *health_message_at(const ctrlbus_base_t *base, uint8_t index)
+{
+    const ctrlbus_base_health_entry_t *entries = base->config->health_entries;
+    return entries != NULL ? entries[index].message : CTRLBUS_HEALTH_WATCHDOG_TRIPPED_MESSAGE;
+}
+
+static int32_t health_find(const ctrlbus_base_t *base, uint32_t code)
+{
+    for (uint8_t i = 0; i < base->health_count; i++) {
+        if (health_code_at(base, i) == code) {
+            return i;
+        }
+    }
+    return -1;
+}
+
+int32_t ctrlbus_base_health_add(ctrlbus_base_t *base, uint32_t code, const char *message)
+{
+    if (base == NULL || base->config == NULL) {
+        return CTRLBUS_ERR_ARGUMENT;
+    }
+    /* The wire's rules for the message (docs/protocol.md §1.5): ASCII, room for the NUL. */
+    for (size_t i = 0; message != NULL && message[i] != '\0'; i++) {
+        if (i >= HEALTH_MESSAGE_MAX || (unsigned char)message[i] > 0x7Fu) {
+            return CTRLBUS_ERR_ARGUMENT;
+        }
+    }
+    if (health_find(base, code) >= 0) {
+        return 0;
+    }
+    ctrlbus_base_health_entry_t *entries = base->config->health_entries;
+    uint8_t capacity = entries != NULL ? base->config->health_capacity
+                                       : (uint8_t)(code == CTRLBUS_HEALTH_WATCHDOG_TRIPPED);
+    if (base->health_count >= capacity) {
+        return CTRLBUS_ERR_TOO_BIG;
+    }
+    if (entries != NULL) {
+        entries[base->health_count].code = code;
+        entries[base->health_count].message = message;
+    }
+    base->health_count++;
+    return 1;
+}
+
+int32_t ctrlbus_base_health_clear(ctrlbus_base_t *base, uint32_t code)
+{
+    if (base == NULL || base->config == NULL) {
+        return CTRLBUS_ERR_ARGUMENT;
+    }
+    int32_t found = health_find(base, code);
+    if (found < 0) {
+        return 0;
+    }
+    ctrlbus_base_health_entry_t *entries = base->config->health_entries;
+    base->health_count--;
+    for (uint8_t i = (uint8_t)found; entries != NULL && i < base->health_count; i++) {
+        entries[i] = entries[i + 1u]; /* keep registration order */
+    }
+    return 1;
+}
+
+uint8_t ctrlbus_base_health_count(const ctrlbus_base_t *base)
+{
+    return base != NULL ? base->health_count : 0u;
+}
+
+/* ---- external-command queue ----------------------------------------------------------------- */
+
+static uint8_t command_capacity(const ctrlbus_base_t *base)
+{
+    return base->config->command_queue != NULL ? base->config->command_queue_size : 1u;
+}
+
+static uint8_t command_at_head(const ctrlbus_base_t *base)
+{
+    const uint8_t *queue = base->config->command_queue;
+    return queue != NULL ? queue[base->command_head] : base->command_head;
+}
+
+static void command_line(const ctrlbus_base_t *base, bool asserted)
+{
+    if (base->config->command_line != NULL) {
+        base->config->command_line(base->config->context, asserted);
+    }
+}
+
+int32_t ctrlbus_base_queue_command(ctrlbus_base_t *base, uint8_t code)
+{
+    if (base == NULL || base->config == NULL ||
+        memchr(EXTERNAL_COMMANDS, code, sizeof EXTERNAL_COMMANDS) == NULL) {
+        return CTRLBUS_ERR_ARGUMENT;
+    }
+    uint8_t capacity = command_capacity(base);
+    if (base->command_count >= capacity) {
+        return CTRLBUS_ERR_TOO_BIG;
+    }
+    uint8_t *queue = base->config->command_queue;
+    if (queue != NULL) {
+        unsigned slot = (unsigned)base->command_head + base->command_count;
+        queue[slot >= capacity ? slot - capacity : slot] = code;
+    } else {
+        base->command_head = code;
+    }
+    if (base->command_count++ == 0u) {
+        command_line(base, true);
+    }
+    return CTRLBUS_OK;
+}
+
+/* POLL_BASE_ANS_CMD: the Core has taken the command at the head. */
+static void command_taken(ctrlbus_base_t *base)
+{
+    if (base->command_count == 0u) {
+        return;
+    }
+    if (base->config->command_queue != NULL) {
+        unsigned next = base->command_head + 1u;
+        base->command_head = (uint8_t)(next == command_capacity(base) ? 0u : next);
+    }
+    if (--base->command_count == 0u) {
+        command_line(base, false);
+    }
+}
+
+void ctrlbus_base_clear_commands(ctrlbus_base_t *base)
+{
+    if (base == NULL || base->config == NULL) {
+        return;
+    }
+    bool was_pending = base->command_count != 0u;
+    base->command_head = 0;
+    base->command_count = 0;
+    if (was_pending) {
+        command_line(base, false);
+    }
+}
+
+uint8_t ctrlbus_base_commands_pending(const ctrlbus_base_t *base)
+{
+    return base != NULL ? base->command_count : 0u;
+}
+
+void ctrlbus_base_counters(const ctrlbus_base_t *base, ctrlbus_base_counters_t *out)
+{
+    if (out == NULL) {
+        return;
+    }
+    out->watchdog_trips = base != NULL ? base->watchdog_trips : 0u;
+    out->clamped_commands = base != NULL ? base->clamped_commands : 0u;
+    out->rx_dropped = base != NULL ? base->rx_dropped : 0u;
+}
+
+/* ---- motion safety: watchdog and limits ----------------------------------------------------- */
+
+static void stop_motors(const ctrlbus_base_t *base)
+{
+    const ctrlbus_base_config_t *config = base->config;
+    if (config->stop_motors != NULL) {
+        config->stop_motors(config->context);
+    } else if (config->set_wheel_speeds != NULL) {
+        (void)config->set_wheel_speeds(config->context, 0, 0);
+    }
+}
+
+static void run_watchdog(ctrlbus_base_t *base, uint32_t now_ms)
+{
+    uint32_t period = base->config->watchdog_ms;
+    if (period == 0u) {
+        period = CTRLBUS_BASE_DEFAULT_WATCHDOG_MS;
+    }
+    uint32_t elapsed = now_ms - base->last_feed_ms;
+    if (period == CTRLBUS_BASE_WATCHDOG_OFF || (base->flags & FLAG_WATCHDOG_EXPIRED) ||
+        elapsed <= period || elapsed >= TIME_BACKWARDS) {
+        return;
+    }
+    /* Once per silence; a stop of moving wheels is a trip the Core can read (§9.1). */
+    bool moving = (base->flags & FLAG_MOTION_COMMANDED) != 0u;
+    set_flags(base, FLAG_WATCHDOG_EXPIRED);
+    clear_flags(base, FLAG_MOTION_COMMANDED);
+    stop_motors(base);
+    if (moving) {
+        base->watchdog_trips++;
+        (void)ctrlbus_base_health_add(base, CTRLBUS_HEALTH_WATCHDOG_TRIPPED,
+                                      CTRLBUS_HEALTH_WATCHDOG_TRIPPED_MESSAGE);
+    }
+}
+
+static void note_motion(ctrlbus_base_t *base, bool clamped, bool moving)
+{
+    if (clamped) {
+        base->clamped_commands++;
+    }
+    if (moving) {
+        set_flags(base, FLAG_MOTION_COMMANDED);
+    } else {
+        clear_flags(base, FLAG_MOTION_COMMANDED);
+    }
+}
+
+/* floor(x * factor / divisor), for divisor in 1..2^31 and a result below 2^32: shift-and-subtract
+ * long division of the 48-bit product, in 32-bit words. The limits are the only division in the
+ * stack, and libgcc's 64-bit division would cost a Cortex-M0+ about 600 bytes. Cost: 48 steps. */
+static uint32_t scale_magnitude(uint32_t x, uint16_t factor, uint32_t divisor)
+{
+    uint32_t middle = (x >> 16) * factor; /* the product is middle * 2^16 + low */
+    uint32_t low = (x & 0xFFFFu) * factor;
+    uint32_t product_low = low + (middle << 16);
+    uint32_t product_high = (middle >> 16) + (product_low < low ? 1u : 0u); /* bits 32..47 */
+    uint32_t remainder = 0; /* < divisor <= 2^31, so doubling it cannot overflow */
+    uint32_t quotient = 0;
+    for (int step = 0; step < 48; step++) {
+        remainder = (remainder << 1) | ((product_high >> 15) & 1u);
+        product_high = (product_high << 1) | (product_low >> 31);
+        product_low <<= 1;
+        quotient <<= 1;
+        if (remainder >= divisor) {
+            remainder -= divisor;
+            quotient |= 1u;
+        }
+    }
+    return quotient;
+}
+
+static uint32_t magnitude(int32_t value)
+{
+    return value < 0 ? 0u - (uint32_t)value : (uint32_t)value;
+}
+
+static int32_t with_sign_of(int32_t sign, uint32_t value)
+{
+    return sign < 0 ? -(int32_t)value : (int32_t)value; /* value <= 2^31 - 1 here */
+}
+
+/* Clamps *value to +-limit (0: no limit). Returns whether it changed. */
+static bool clamp_to(int32_t *value, uint32_t limit)
+{
+    if (limit == 0u || limit > INT32_MAX || magnitude(*value) <= limit) {
+        return false;
+    }
+    *value = with_sign_of(*value, limit);
+    return true;
+}
+
+/* If the larger of |peak_a| and |peak_b| (wheel speeds, mm/s) exceeds limit (0: none), scales *a
+ * and *b by limit / that peak, towards zero, so the path keeps its curvature (§9.2). Returns
+ * whether it did. */
+static bool scale_to(int32_t *a, int32_t *b, int32_t peak_a, int32_t peak_b, uint16_t limit)
+{
+    uint32_t peak = magnitude(peak_a) > magnitude(peak_b) ? magnitude(peak_a) : magnitude(peak_b);
+    if (limit == 0u || peak <= limit) {
+        return false;
+    }
+    /* limit / peak < 1, so each result is smaller than its input. */
+    *a = with_sign_of(*a, scale_magnitude(magnitude(*a), limit, peak));
+    *b = with_sign_of(*b, scale_magnitude(magnitude(*b), limit, peak));
+    return true;
+}
+
+/* ---- answering ------------------------------------------------------------------------------ */
+
+static ctrlbus_frame_type_t answer_type(const ctrlbus_base_t *base)
+{
+    return base->config->standard_answers ? CTRLBUS_FRAME_AUTO : CTRLBUS_FRAME_LONG;
+}
+
+static uint16_t handler_error(int32_t result)
+{
+    return result == CTRLBUS_ERR_UNSUPPORTED ? CTRLBUS_WIRE_ERR_UNSUPPORTED
+                                             : CTRLBUS_WIRE_ERR_OPERATION;
+}
+
+/* What a rebooted base forgets (docs/base-framework.md behaviour 12): the input not yet
+ * answered, the command queue, the health list, the watchdog's state and the uptime origin. */
+static void restart(ctrlbus_base_t *base, uint32_t now_ms)
+{
+    ctrlbus_base_clear_commands(base);
+    base->health_count = 0;
+    base->flags = FLAG_REBOOTED;
+    base->last_feed_ms = now_ms;
+    base->boot_ms = now_ms;
+    ctrlbus_decoder_reset(&base->decoder);
+}
+
+/* Runs the application's part of a validated request and writes its OK answer. Returns 0 when
+ * answered, else the ERROR code to answer with (nothing written yet then). */
+static uint16_t answer_request(ctrlbus_base_t *base, const ctrlbus_request_t *request,
+                               ctrlbus_sink_t *sink, uint32_t now_ms)
+{
+    const ctrlbus_base_config_t *config = base->config;
+    void *context = config->context;
+    bool sdk2020 = config->profile == CTRLBUS_PROFILE_SDK2020;
+    ctrlbus_answer_t answer;
+    memset(&answer, 0, sizeof answer); /* handlers fill in what they know; the rest is zero */
+    answer.kind = CTRLBUS_ANSWER_OK;
+    answer.to = request->kind;
+    int32_t result = CTRLBUS_ERR_UNSUPPORTED; /* a request whose handler is missing */
+    switch (request->kind) {
+    case CTRLBUS_REQ_CONNECT_BASE: {
+        ctrlbus_connect_base_answer_t *out = &answer.as.connect_base;
+        if (config->connect_info != NULL) {
+            result = config->connect_info(context, out);
+        }
+        out->has_firmware_version_suffix = sdk2020; /* the profile decides the size */
+        break;
+    }
+    case CTRLBUS_REQ_GET_BASE_CONF:
+        if (config->base_config != NULL) {
+            result = config->base_config(context, &answer.as.get_base_conf);
+        }
+        break;
+    case CTRLBUS_REQ_GET_BASE_CONF_ADV:
+        if (config->binary_config != NULL && config->binary_config_size != 0u) {
+            answer.as.get_base_conf_adv.blob = config->binary_config;
+            answer.as.get_base_conf_adv.blob_len = config->binary_config_size;
+            result = CTRLBUS_OK;
+        }
+        break;
+    case CTRLBUS_REQ_GET_BASE_STATUS:
+        if (config->status != NULL) {
+            result = config->status(context, &answer.as.get_base_status);
+        }
+        break;
+    case CTRLBUS_REQ_GET_BASE_MOTOR_DATA:
+        if (config->motor_data != NULL) {
+            result = config->motor_data(context, &answer.as.get_base_motor_data);
+        }
+        break;
+    case CTRLBUS_REQ_GET_BASE_SENSOR_DATA:
+        if (config->sensor_data != NULL) {
+            result = config->sensor_data(context, &answer.as.get_base_sensor_data);
+        }
+        break;
+    case CTRLBUS_REQ_GET_BASE_BUMPER_DATA: {
+        ctrlbus_get_base_bumper_data_answer_t *out = &answer.as.get_base_bumper_data;
+        if (config->bumper_data != NULL) {
+            result = config->bumper_data(context, out);
+        }
+        if (out->payload_size == 0u || sdk2020) {
+            out->payload_size = CTRLBUS_GET_BASE_BUMPER_DATA_ANSWER_SIZE; /* same value, padded */
+        }
+        break;
+    }
+    case CTRLBUS_REQ_GET_CHARGER_DATA:
+        if (config->charger_data != NULL) {
+            result = config->charger_data(context, &answer.as.get_charger_data);
+        }
+        break;
+    case CTRLBUS_REQ_SET_BASE_MOTOR:
+        if (config->set_wheel_speeds != NULL) {
+            int32_t left = request->as.set_base_motor.speeds_mm_s[0];
+            int32_t right = request->as.set_base_motor.speeds_mm_s[1];
+            bool clamped = scale_to(&left, &right, left, right, config->limits.max_wheel_mm_s);
+            note_motion(base, clamped, left != 0 || right != 0);
+            result = config->set_wheel_speeds(context, left, right);
+        }
+        break;
+    case CTRLBUS_REQ_SET_V_AND_GET_DEADRECKON:
+        if (config->set_velocity != NULL) {
+            const ctrlbus_base_limits_t *limits = &config->limits;
+            ctrlbus_set_v_and_get_deadreckon_request_t v = request->as.set_v_and_get_deadreckon;
+            bool clamped = clamp_to(&v.vx_mps_q16, limits->max_vx_mps_q16);
+            clamped = clamp_to(&v.omega_radps_q16, limits->max_omega_radps_q16) || clamped;
+            if (limits->wheel_track_mm != 0u) {
+                int32_t left = 0;
+                int32_t right = 0;
+                ctrlbus_diffdrive_wheel_speeds(v.vx_mps_q16, v.omega_radps_q16,
+                                               limits->wheel_track_mm, &left, &right);
+                clamped = scale_to(&v.vx_mps_q16, &v.omega_radps_q16, left, right,
+                                   limits->max_wheel_mm_s) ||
+                          clamped;
+            }
+            note_motion(base, clamped,
+                        v.vx_mps_q16 != 0 || v.vy_mps_q16 != 0 || v.omega_radps_q16 != 0);
+            ctrlbus_set_v_and_get_deadreckon_answer_t *out = &answer.as.set_v_and_get_deadreckon;
+            result = config->set_velocity(context, &v, out);
+            if (!sdk2020) {
+                out->has_timestamp_ms = false;
+            } else if (!out->has_timestamp_ms) {
+                out->has_timestamp_ms = true;
+                out->timestamp_ms = now_ms - base->boot_ms;
+            }
+        }
+        break;
+    case CTRLBUS_REQ_POLL_BASE_CMD: {
+        ctrlbus_poll_base_cmd_answer_t *out = &answer.as.poll_base_cmd;
+        out->has_command = base->command_count != 0u;
+        out->command = out->has_command ? command_at_head(base) : 0u;
+        /* Nothing pending: OK 0 (base_ref v4), or FF 00 for the SDK's fixed-size read. */
+        out->payload_size = out->has_command || sdk2020 ? CTRLBUS_POLL_BASE_CMD_ANSWER_SIZE : 0u;
+        result = CTRLBUS_OK;
+        break;
+    }
+    case CTRLBUS_REQ_POLL_BASE_ANS_CMD:
+        command_taken(base);
+        result = CTRLBUS_OK;
+        break;
+    case CTRLBUS_REQ_SEND_EVENT:
+        result = config->on_event != NULL
+                     ? config->on_event(context, request->as.send_event.event)
+                     : CTRLBUS_OK;
+        break;
+    case CTRLBUS_REQ_HEALTH_GET_HEALTH:
+        for (uint8_t i = 0; i < base->health_count; i++) {
+            uint32_t level = health_code_at(base, i) >> 24;
+            answer.as.health_get_health.flags |= (uint8_t)(level & HEALTH_LEVEL_BITS);
+        }
+        answer.as.health_get_health.error_count = base->health_count;
+        result = CTRLBUS_OK;
+        break;
+    case CTRLBUS_REQ_HEALTH_GET_ERROR: {
+        uint8_t index = request->as.health_get_error.index;
+        if (index >= base->health_count) {
+            return CTRLBUS_WIRE_ERR_OPERATION;
+        }
+        answer.as.health_get_error.error_code = health_code_at(base, index);
+        const char *message = health_message_at(base, index);
+        for (size_t i = 0; message != NULL && message[i] != '\0' && i < HEALTH_MESSAGE_MAX; i++) {
+            answer.as.health_get_error.message[i] = message[i];
+        }
+        result = CTRLBUS_OK;
+        break;
+    }
+    case CTRLBUS_REQ_HEALTH_CLR_ERROR:
+        if (ctrlbus_base_health_clear(base, request->as.health_clr_error.error_code) <= 0) {
+            return CTRLBUS_WIRE_ERR_OPERATION;
+        }
+        result = CTRLBUS_OK;
+        break;
+    case CTRLBUS_REQ_BASE_CMD:
+        /* Its hook runs once the answer is out (below). */
+        if (request->as.base_cmd.subcommand == CTRLBUS_BASE_CMD_REBOOT) {
+            result = config->reboot != NULL ? CTRLBUS_OK : result;
+        } else {
+            result = config->enter_dfu != NULL ? CTRLBUS_OK : result;
+        }
+        break;
+    default: break; /* GET_AUXILIARY_ANCHOR has no layout: unsupported (§5.9) */
+    }
+    if (result < 0) {
+        return handler_error(result);
+    }
+    /* A struct the codec refuses (text that is not ASCII, a count over 8, ...) is a handler
+     * failure; it is found before any byte goes out. */
+    if (ctrlbus_answer_payload_size(&answer) < 0) {
+        return CTRLBUS_WIRE_ERR_OPERATION;
+    }
+    (void)ctrlbus_answer_write(sink, &answer, answer_type(base));
+    if (request->kind == CTRLBUS_REQ_BASE_CMD) {
+        if (request->as.base_cmd.subcommand == CTRLBUS_BASE_CMD_REBOOT) {
+            restart(base, now_ms); /* what a handler that returns (a host base) finds */
+            config->reboot(context);
+        } else {
+            config->enter_dfu(context);
+        }
+    }
+    return 0;
+}
+
+static void handle_frame(ctrlbus_base_t *base, const ctrlbus_frame_t *frame, uint32_t now_ms,
+                         ctrlbus_sink_t *sink)
+{
+    if (frame->cmd == CTRLBUS_CMD_SYNC || frame->cmd == CTRLBUS_CMD_ECHO) {
+        /* The request copied verbatim, flag and checksum included; not motor traffic. */
+        (void)ctrlbus_frame_write(sink, frame->cmd, frame->payload, frame->payload_len,
+                                  frame->is_long ? CTRLBUS_FRAME_LONG : CTRLBUS_FRAME_STANDARD);
+        return;
+    }
+    if (frame->cmd == CTRLBUS_CMD_CTRL_BUS) {
+        /* Any CTRL_BUS frame that passed its checksum shows that the Core is alive (§9.1). */
+        base->last_feed_ms = now_ms;
+        clear_flags(base, FLAG_WATCHDOG_EXPIRED);
+    }
+    ctrlbus_request_t request;
+    int32_t result =
+        ctrlbus_request_decode(&request, frame->cmd, frame->payload, frame->payload_len);
+    uint16_t error = result < 0 ? ctrlbus_request_error_code(&request, result)
+                                : answer_request(base, &request, sink, now_ms);
+    if (error != 0u) {
+        (void)ctrlbus_error_answer_write(sink, error, answer_type(base));
+    }
+}
+
+/* Answers every result the decoder has ready. Returns how many there were. */
+static unsigned drain(ctrlbus_base_t *base, uint32_t now_ms)
+{
+    const ctrlbus_base_config_t *config = base->config;
+    ctrlbus_sink_t sink;
+    (void)ctrlbus_sink_init(&sink, config->write, config->write_context);
+    unsigned results = 0;
+    ctrlbus_frame_t frame;
+    for (ctrlbus_rx_t rx; (rx = ctrlbus_decoder_next(&base->decoder, &frame)) != CTRLBUS_RX_NONE;) {
+        results++;
+        if (rx == CTRLBUS_RX_FRAME) {
+            handle_frame(base, &frame, now_ms, &sink);
+            continue;
+        }
+        uint16_t error =
+            (size_t)rx < sizeof EVENT_ERRORS / sizeof EVENT_ERRORS[0] ? EVENT_ERRORS[rx] : 0u;
+        if (error == CTRLBUS_WIRE_ERR_CHECKSUM && config->reference_checksum_code) {
+            error = CTRLBUS_WIRE_ERR_CHECKSUM_REFERENCE;
+        }
+        if (error != 0u) {
+            (void)ctrlbus_error_answer_write(&sink, error, answer_type(base));
+        }
+    }
+    return results;
+}
+
+/* After a reboot handler returned: what was received before the reset is not heard. */
+static bool dropped_after_reboot(ctrlbus_base_t *base)
+{
+    if (!(base->flags & FLAG_REBOOTED)) {
+        return false;
+    }
+    clear_flags(base, FLAG_REBOOTED);
+    uint16_t head = base->rx_head;
+    CTRLBUS_RING_FENCE();
+    base->rx_tail = head;
+    return true;
+}
+
+void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
+{
+    if (base == NULL || base->config == NULL) {
+        return;
+    }
+    const ctrlbus_base_config_t *config = base->config;
+    run_watchdog(base, now_ms);
+    /* Only what is in the ring now: an interrupt that keeps feeding cannot keep us here. */
+    uint16_t head = base->rx_head;
+    CTRLBUS_RING_FENCE(); /* the bytes up to head are read only after head is */
+    uint16_t tail = base->rx_tail;
+    while (tail != head) {
+        uint16_t end = head > tail ? head : config->rx_ring_size;
+        size_t used = ctrlbus_decoder_feed(&base->decoder, config->rx_ring + tail,
+                                           (size_t)(end - tail), now_ms);
+        tail = (uint16_t)(tail + used);
+        if (tail == config->rx_ring_size) {
+            tail = 0;
+        }
+        CTRLBUS_RING_FENCE(); /* done with those bytes before feed may reuse their slots */
+        base->rx_tail = tail;
+        unsigned results = drain(base, now_ms);
+        if (dropped_after_reboot(base)) {
+            return;
+        }
+        if (used == 0u && results == 0u) {
+            break; /* cannot happen with a valid decoder; never spin */
+        }
+    }
+    ctrlbus_decoder_tick(&base->decoder, now_ms);
+    (void)drain(base, now_ms);
+    (void)dropped_after_reboot(base);
+}
+
+int32_t ctrlbus_base_init(ctrlbus_base_t *base, const ctrlbus_base_config_t *config,
+                          uint32_t now_ms)
+{
+    if (base == NULL || config == NULL || config->write == NULL || config->rx_ring == NULL ||
+        config->rx_ring_size < 2u || config->binary_config_size > CTRLBUS_LONG_PAYLOAD_MAX ||
+        (config->profile != CTRLBUS_PROFILE_REFERENCE &&
+         config->profile != CTRLBUS_PROFILE_SDK2020) ||
+        (config->profile == CTRLBUS_PROFILE_SDK2020 && config->standard_answers)) {
+        return CTRLBUS_ERR_ARGUMENT;
+    }
+    uint16_t timeout = config->frame_timeout_ms;
+    if (timeout == 0u) {
+        timeout = CTRLBUS_DEFAULT_TIMEOUT_MS;
+    } else if (timeout == CTRLBUS_BASE_TIMEOUT_OFF) {
+        timeout = 0;
+    }
+    /* Checks frame_buffer and its size. */
+    int32_t result = ctrlbus_decoder_init(&base->decoder, config->frame_buffer,
+                                          config->frame_buffer_size, timeout,
+                                          config->decoder_stats);
+    if (result < 0) {
+        return result;
+    }
+    base->config = config;
+    base->rx_head = 0;
+    base->rx_tail = 0;
+    base->rx_dropped = 0;
+    base->last_feed_ms = now_ms;
+    base->boot_ms = now_ms;
+    base->watchdog_trips = 0;
+    base->clamped_commands = 0;
+    base->health_count = 0;
+    base->command_head = 0;
+    base->command_count = 0;
+    base->flags = 0;
+    return CTRLBUS_OK;
+}

@@ -1,0 +1,149 @@
+/* Differential-drive helpers (see ctrlbus/diffdrive.h). */
+#include "ctrlbus/diffdrive.h"
+
+#include <stddef.h>
+
+#define Q16_ONE 65536.0f
+#define DEGREES_PER_RADIAN 57.29577951308232f
+/* Largest rotation done in one series step; the series below is good to 2e-6 there. */
+#define MAX_SERIES_ANGLE_RAD 0.5f
+/* Below this half-turn (radians) the chord factor sin(h)/h comes from its series. */
+#define SMALL_HALF_TURN_RAD 1e-4f
+
+static int32_t saturate_i64(int64_t value)
+{
+    if (value > INT32_MAX) {
+        return INT32_MAX;
+    }
+    if (value < INT32_MIN) {
+        return INT32_MIN;
+    }
+    return (int32_t)value;
+}
+
+/* value / divisor rounded to nearest, halves away from zero (divisor > 0). */
+static int64_t divide_rounded(int64_t value, int64_t divisor)
+{
+    return value >= 0 ? (value + divisor / 2) / divisor : -((-value + divisor / 2) / divisor);
+}
+
+static int32_t float_to_q16(float value)
+{
+    float scaled = value * Q16_ONE;
+    if (scaled >= 2147483647.0f) {
+        return INT32_MAX;
+    }
+    if (scaled <= -2147483648.0f) {
+        return INT32_MIN;
+    }
+    return (int32_t)(scaled >= 0.0f ? scaled + 0.5f : scaled - 0.5f);
+}
+
+void ctrlbus_diffdrive_wheel_speeds(int32_t vx_mps_q16, int32_t omega_radps_q16,
+                                    int32_t wheel_track_mm, int32_t *left_mm_s,
+                                    int32_t *right_mm_s)
+{
+    /* Everything doubled (so W/2 stays exact) and in Q16: |2000 vx| < 2^42, |omega W| <= 2^62. */
+    int64_t forward = (int64_t)vx_mps_q16 * 2000;
+    int64_t turn = (int64_t)omega_radps_q16 * wheel_track_mm;
+    if (left_mm_s != NULL) {
+        *left_mm_s = saturate_i64(divide_rounded(forward - turn, 2 * 65536));
+    }
+    if (right_mm_s != NULL) {
+        *right_mm_s = saturate_i64(divide_rounded(forward + turn, 2 * 65536));
+    }
+}
+
+void ctrlbus_diffdrive_pose_reset(ctrlbus_diffdrive_pose_t *pose, float x_mm, float y_mm)
+{
+    pose->x_mm = x_mm;
+    pose->y_mm = y_mm;
+    pose->heading_cos = 1.0f;
+    pose->heading_sin = 0.0f;
+    pose->turned_rad = 0.0f;
+}
+
+/* Rotates the unit vector (*c, *s) by angle (|angle| <= MAX_SERIES_ANGLE_RAD), then pulls it back
+ * to unit length so that rounding does not build up over many steps. */
+static void rotate_small(float *c, float *s, float angle)
+{
+    float a2 = angle * angle;
+    float cos_a = 1.0f - a2 / 2.0f * (1.0f - a2 / 12.0f * (1.0f - a2 / 30.0f));
+    float sin_a = angle * (1.0f - a2 / 6.0f * (1.0f - a2 / 20.0f * (1.0f - a2 / 42.0f)));
+    float rc = *c * cos_a - *s * sin_a;
+    float rs = *s * cos_a + *c * sin_a;
+    /* One Newton step towards 1 / |v|: enough, as |v| is within 1e-6 of 1 here. */
+    float scale = 1.5f - 0.5f * (rc * rc + rs * rs);
+    *c = rc * scale;
+    *s = rs * scale;
+}
+
+static void rotate(float *c, float *s, float angle)
+{
+    while (angle > MAX_SERIES_ANGLE_RAD) {
+        rotate_small(c, s, MAX_SERIES_ANGLE_RAD);
+        angle -= MAX_SERIES_ANGLE_RAD;
+    }
+    while (angle < -MAX_SERIES_ANGLE_RAD) {
+        rotate_small(c, s, -MAX_SERIES_ANGLE_RAD);
+        angle += MAX_SERIES_ANGLE_RAD;
+    }
+    rotate_small(c, s, angle);
+}
+
+void ctrlbus_diffdrive_pose_turn(ctrlbus_diffdrive_pose_t *pose, float angle_rad)
+{
+    rotate(&pose->heading_cos, &pose->heading_sin, angle_rad);
+    pose->turned_rad += angle_rad;
+}
+
+void ctrlbus_diffdrive_pose_advance(ctrlbus_diffdrive_pose_t *pose, float left_mm, float right_mm,
+                                    float wheel_track_mm)
+{
+    float distance = (left_mm + right_mm) / 2.0f;
+    float turn = (right_mm - left_mm) / wheel_track_mm;
+    float half = turn / 2.0f;
+    /* The chord of an arc is its length times sin(h)/h, along the heading halfway round. */
+    float chord;
+    if (half > SMALL_HALF_TURN_RAD || half < -SMALL_HALF_TURN_RAD) {
+        float c = 1.0f;
+        float s = 0.0f;
+        rotate(&c, &s, half);
+        chord = distance * s / half;
+    } else {
+        chord = distance * (1.0f - half * half / 6.0f);
+    }
+    float mid_cos = pose->heading_cos;
+    float mid_sin = pose->heading_sin;
+    rotate(&mid_cos, &mid_sin, half);
+    pose->x_mm += chord * mid_cos;
+    pose->y_mm += chord * mid_sin;
+    ctrlbus_diffdrive_pose_turn(pose, turn);
+}
+
+void ctrlbus_diffdrive_take_deadreckon(ctrlbus_diffdrive_pose_t *motion, int32_t *dx_mm_q16,
+                                       int32_t *dy_mm_q16, int32_t *dtheta_deg_q16)
+{
+    int32_t dx = float_to_q16(motion->x_mm);
+    int32_t dy = float_to_q16(motion->y_mm);
+    int32_t dtheta = float_to_q16(motion->turned_rad * DEGREES_PER_RADIAN);
+    if (dx_mm_q16 != NULL) {
+        *dx_mm_q16 = dx;
+    }
+    if (dy_mm_q16 != NULL) {
+        *dy_mm_q16 = dy;
+    }
+    if (dtheta_deg_q16 != NULL) {
+        *dtheta_deg_q16 = dtheta;
+    }
+    /* What was not reported, as seen from the reported pose. The reported heading differs from
+     * the true one by a rounding remainder, so rotating by the true heading is exact to second
+     * order in that remainder. */
+    float rest_x = motion->x_mm - (float)dx / Q16_ONE;
+    float rest_y = motion->y_mm - (float)dy / Q16_ONE;
+    float rest_turn = motion->turned_rad - (float)dtheta / Q16_ONE / DEGREES_PER_RADIAN;
+    float c = motion->heading_cos;
+    float s = motion->heading_sin;
+    ctrlbus_diffdrive_pose_reset(motion, c * rest_x + s * rest_y, c * rest_y - s * rest_x);
+    ctrlbus_diffdrive_pose_turn(motion, rest_turn);
+}
