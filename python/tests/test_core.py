@@ -247,13 +247,16 @@ def test_answer_variants_are_accepted(
 
 
 @pytest.mark.parametrize("code", [0x0040, 0x00C0, 0x0020])
-def test_transport_error_answers_are_retried_at_once(code: int) -> None:
+def test_transport_error_answers_are_retried_after_the_grace_period(code: int) -> None:
     core, base, bus = start()
     t0 = bus.now
     base.error_once["GET_BASE_STATUS"] = code
     bus.run_for(1.2)
     statuses = [when for when, request in base.requests if request.NAME == "GET_BASE_STATUS" and when >= t0]
-    assert len(statuses) == 2 and statuses[1] - statuses[0] < 0.02  # sent again at once
+    grace = core.config.transport_error_grace_s
+    # sent again once the grace period for a late real answer has passed, well before the timeout
+    assert len(statuses) == 2
+    assert grace <= statuses[1] - statuses[0] < grace + 0.02
     stats = core.link_stats()
     assert stats["retries"] == 1
     assert stats["errors_by_code"] == {"0x8000": 1, f"0x{code:04X}": 1}  # 0x8000: no blob (0x21)
@@ -802,3 +805,28 @@ def test_the_core_satisfies_the_dashboard_source_without_importing_the_web_layer
         [sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True
     )
     assert result.stdout.strip() == "[]"
+
+
+def test_garbage_before_an_intact_request_neither_retries_nor_desynchronises() -> None:
+    """A false long header in front of a request: the base answers ERROR 0x0020 for it, then the
+    request itself. The Core must take that answer, not resend and take it for the next one."""
+    planted: list[float] = []
+
+    def plant_false_header(data: bytes, now: float) -> bytes:
+        # Once, in front of a GET_BASE_STATUS request (10 02 F8 30 DA): 50 FF FF claims 64 KiB.
+        if not planted and data.startswith(bytes.fromhex("1002F830")):
+            planted.append(now)
+            return bytes.fromhex("50FFFF") + data
+        return data
+
+    base = BaseStack(SimulatedBase(World()), BaseConfig())
+    core = CoreSession(port="sim")
+    bus = VirtualBus(core, base, to_base=plant_false_header)
+    assert bus.run_until(lambda: core.connected, CONNECT_LIMIT_S), core.events()
+    core.set_velocity(0.1, 0.0)
+    bus.run_for(5.0)
+    stats = core.link_stats()
+    assert planted, "no GET_BASE_STATUS went out to plant the garbage in front of"
+    assert stats["errors_by_code"].get("0x0020") == 1
+    assert stats["retries"] == 0 and stats["malformed_answers"] == 0 and stats["timeouts"] == 0
+    assert core.connected and stats["disconnects"] == 0

@@ -10,6 +10,7 @@ import math
 from dataclasses import dataclass, field, fields, replace
 
 from ctrlbus.errors import UsageError
+from ctrlbus.frame import MAX_FRAME
 from ctrlbus.link import DEFAULT_BAUD
 
 # One UART character at 8N1 is 10 bits: start, 8 data, stop.
@@ -108,6 +109,10 @@ class CoreConfig:
     connect_interval_s: float = 0.5  # §11.1: CONNECT_BASE every 500 ms until answered
     flush_sync: bool = True  # §11.1: a 512-byte SYNC after each unanswered CONNECT_BASE
     decoder_timeout_s: float = 0.1  # §7.6: host-side inter-byte timeout
+    # §11.6: the largest answer accepted. A false 0x50 header in noise claims up to 64 KiB; a cap
+    # near the largest real answer makes most of them fail at once instead of holding the line.
+    max_frame: int = 4096
+    transport_error_grace_s: float = 0.05  # §11.6: wait this long for the answer after ERROR 0x0020/0x0040
     byte_time_s: float = BITS_PER_BYTE / DEFAULT_BAUD  # when a request's last byte has left
     long_frames: bool = False  # §6.3: False = `reference` profile, True = `sdk2020`
     watchdog_s: float = 1.0  # §9.1: a gap longer than this between CTRL_BUS requests trips it
@@ -140,4 +145,7 @@ class CoreConfig:
         for name in positive:
             _check_number("CoreConfig", name, getattr(self, name), low=0.0, allow_low=False)
         _check_number("CoreConfig", "decoder_timeout_s", self.decoder_timeout_s, low=0.0)
+        _check_number("CoreConfig", "transport_error_grace_s", self.transport_error_grace_s, low=0.0)
+        if not isinstance(self.max_frame, int) or not 5 <= self.max_frame <= MAX_FRAME:
+            raise UsageError(f"CoreConfig.max_frame must be a whole number from 5 to {MAX_FRAME}")
         _check_number("CoreConfig", "byte_time_s", self.byte_time_s, low=0.0)

@@ -131,6 +131,7 @@ class _Outstanding:
     sent_at: float = 0.0
     deadline: float = 0.0
     resend: bool = False  # a failed attempt: send again at the next poll()
+    transport_error: str | None = None  # a line-fault ERROR seen; the real answer may still follow
     schedule_name: str | None = None
 
 
@@ -243,7 +244,7 @@ class CoreSession:
         self.config = config if config is not None else CoreConfig()
         self.port = port
         self._lock = threading.RLock()
-        self._decoder = StreamDecoder(timeout=self.config.decoder_timeout_s)
+        self._decoder = StreamDecoder(max_frame=self.config.max_frame, timeout=self.config.decoder_timeout_s)
         self._stats = LinkStats()
         self._subscribers: list[Callable[[str], None]] = []
         self._changed: set[str] = set()
@@ -709,6 +710,7 @@ class CoreSession:
             self._stats.retries += 1
         outstanding.attempts += 1
         outstanding.resend = False
+        outstanding.transport_error = None
         outstanding.sent_at = now
         wire_time = len(outstanding.frame) * self.config.byte_time_s
         outstanding.deadline = now + wire_time + self.config.request_timeout_s
@@ -737,6 +739,9 @@ class CoreSession:
                 self._prepare(Sync(FLUSH_FILLER), _Purpose.FLUSH, attempts=1)
             else:
                 self._schedule_next_connect(now)
+            return
+        if outstanding.transport_error is not None:
+            self._failed_attempt(outstanding, outstanding.transport_error, now)
             return
         self._stats.timeouts += 1
         self._failed_attempt(outstanding, f"no answer to {describe_request(outstanding.message)}", now)
@@ -829,8 +834,12 @@ class CoreSession:
                 return
             self._stats.count_answer(now - outstanding.sent_at)
             if code in TRANSPORT_ERRORS:
+                # The base answers in stream order: garbage in front of an intact request gives
+                # this error first and the real answer right after it. Resending at once would
+                # put every later answer one step out of order, so wait a moment (§11.6).
                 self._log_error(request, code)
-                self._failed_attempt(outstanding, f"ERROR 0x{code:04X} to {request.NAME}", now)
+                outstanding.transport_error = f"ERROR 0x{code:04X} to {request.NAME}"
+                outstanding.deadline = min(outstanding.deadline, now + self.config.transport_error_grace_s)
                 return
         elif isinstance(answer, InvalidAnswer):
             self._stats.invalid_answers += 1
