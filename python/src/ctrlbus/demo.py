@@ -24,13 +24,12 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from types import FrameType
 from typing import IO, TYPE_CHECKING, Any
 
-from ctrlbus.cli.common import add_dashboard_arguments
+from ctrlbus.cli.common import add_dashboard_arguments, stop_on_signals
 from ctrlbus.errors import CtrlbusError, LinkError, UsageError
 from ctrlbus.web.options import DashboardOptions
 from ctrlbus.web.source import DashboardSource
@@ -44,7 +43,6 @@ DEFAULT_FIRMWARE = REPO_ROOT / "build" / "firmware" / "ctrlbus-base.elf"
 PTY_PATTERN = re.compile(r"(/dev/(?:pts/\d+|tty[A-Za-z0-9]+))")
 CHILD_START_TIMEOUT_S = 15.0
 CHILD_STOP_TIMEOUT_S = 3.0
-STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -96,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"--speed must be between 0.1 and 100, got {args.speed}")
 
     stop = threading.Event()
-    with _stop_on_signals(stop), contextlib.ExitStack() as cleanup:
+    with stop_on_signals(stop), contextlib.ExitStack() as cleanup:
         base = _start_base(args, cleanup)
         source = _start_core(base, cleanup)
         from ctrlbus.web import start_dashboard
@@ -113,19 +111,6 @@ def run(args: argparse.Namespace) -> int:
                 return 1
     print("ctrlbus demo: stopped", flush=True)
     return 0
-
-
-@contextlib.contextmanager
-def _stop_on_signals(stop: threading.Event) -> Iterator[None]:
-    def on_signal(signum: int, frame: FrameType | None) -> None:
-        stop.set()
-
-    previous = {sig: signal.signal(sig, on_signal) for sig in STOP_SIGNALS}
-    try:
-        yield
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
 
 
 # -- bases ------------------------------------------------------------------------------------

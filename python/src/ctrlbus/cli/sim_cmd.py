@@ -11,16 +11,12 @@ Prints where it serves on stdout as one line (`pty: /dev/pts/N`, `listen: HOST:P
 from __future__ import annotations
 
 import argparse
-import contextlib
-import signal
 import sys
 import threading
-from collections.abc import Iterator
-from types import FrameType
 from typing import Any
 
 from ctrlbus.base import DEFAULT_WATCHDOG_S, serve
-from ctrlbus.cli.common import add_serve_arguments
+from ctrlbus.cli.common import add_serve_arguments, stop_on_signals
 from ctrlbus.errors import UsageError
 from ctrlbus.sim.server import MAX_TIME_SCALE, SimServer, SimSettings
 
@@ -30,8 +26,6 @@ sensors, bumpers, cliff sensors, a battery and a charging dock (docs/simulator.m
 every Control Bus request as a real base would (docs/base-framework.md). The first line on stdout
 says where it serves: 'pty: /dev/pts/N', 'listen: HOST:PORT' or 'port: URL'. Ctrl-C stops it.
 """
-
-STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
 def register(subparsers: Any) -> None:
@@ -115,31 +109,13 @@ def settings_from_args(args: argparse.Namespace) -> SimSettings:
     )
 
 
-@contextlib.contextmanager
-def _stop_on_signals(stop: threading.Event) -> Iterator[None]:
-    """Ctrl-C, SIGTERM and SIGHUP set `stop` (so the loop ends cleanly) while inside."""
-    if threading.current_thread() is not threading.main_thread():
-        yield  # signal handlers belong to the main thread; whoever runs us there stops us
-        return
-
-    def on_signal(signum: int, frame: FrameType | None) -> None:
-        stop.set()
-
-    previous = {sig: signal.signal(sig, on_signal) for sig in STOP_SIGNALS}
-    try:
-        yield
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
-
-
 def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
     """Serve until a stop signal (or until `stop` is set, for callers in other threads)."""
     settings = settings_from_args(args)
     stop = stop if stop is not None else threading.Event()
     with SimServer.open(settings, pty=args.pty, listen=args.listen, port=args.port, baud=args.baud) as server:
         print(server.address, flush=True)
-        with _stop_on_signals(stop):
+        with stop_on_signals(stop):
             serve(server.stack, server.link, stop_event=stop)
         counters = server.stack.counters()
     print(
