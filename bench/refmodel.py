@@ -38,10 +38,13 @@ class ReferenceModelDecoder:
     """Feed bytes, get the frames the reference firmware would execute (as their raw bytes)."""
 
     counters: ReferenceModelCounters = field(default_factory=ReferenceModelCounters)
+    offsets: list[int] = field(default_factory=list)  # stream offset of every frame delivered
     _pending: bytearray = field(default_factory=bytearray)
+    _pending_offset: int = 0  # stream offset of the first pending byte
 
     def feed(self, data: bytes) -> list[bytes]:
         buf = self._pending + data
+        base = self._pending_offset
         frames: list[bytes] = []
         pos = 0
         end = len(buf)
@@ -79,5 +82,7 @@ class ReferenceModelDecoder:
             else:
                 self.counters.frames += 1
                 frames.append(candidate)
+                self.offsets.append(base + pos - size)
         self._pending = bytearray(buf[pos:])
+        self._pending_offset = base + pos
         return frames

@@ -120,3 +120,24 @@ def test_serve_link_needs_exactly_one_choice() -> None:
         serve_link()
     with pytest.raises(UsageError):
         serve_link(pty=True, listen="127.0.0.1:0")
+
+
+def test_socket_url_reads_what_is_waiting_in_one_call() -> None:
+    server = TcpServerLink("127.0.0.1", 0)
+    try:
+        client = open_link(f"socket://127.0.0.1:{server.port}")
+        read_exactly(server.read, 0)  # accept the connection
+        server.write(bytes(range(200)))
+        time.sleep(0.2)  # let all 200 bytes arrive before the one read below
+        assert client.read(1.0) == bytes(range(200))
+        client.close()
+    finally:
+        server.close()
+
+
+def test_loop_url_with_a_full_buffer_raises_link_error() -> None:
+    loop = open_link("loop://")
+    with pytest.raises(LinkError, match="buffer is full"):
+        for _ in range(10_000):
+            loop.write(b"x" * 4096)
+    loop.close()

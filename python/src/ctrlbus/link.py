@@ -5,7 +5,8 @@ Every link has the same small interface (`Link`), so the Core emulator, the base
 fault injector do not care whether the other end is a USB adapter, a pty, a TCP socket or an
 in-process pipe.
 
-- `open_link(url)` opens any pyserial URL (`/dev/ttyUSB0`, `socket://127.0.0.1:5555`, `loop://`).
+- `open_link(url)` opens any pyserial URL (`/dev/ttyUSB0`, `socket://127.0.0.1:5555`, `loop://`),
+  or `fault:SPEC|URL`: that port behind the fault injector (ctrlbus.faults).
 - `PtyLink` creates a pseudo-terminal and serves on its master side; `path` is what the other
   program opens.
 - `TcpServerLink` listens on HOST:PORT; each accepted connection is one serial link and a new
@@ -19,6 +20,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import os
+import queue
 import select
 import socket
 import threading
@@ -81,7 +83,9 @@ class SerialLink:
             while True:
                 waiting = self._port.in_waiting
                 if waiting:
-                    data: bytes = self._port.read(waiting)
+                    # socket:// reports 1 waiting byte whatever is there; the port is
+                    # non-blocking (timeout=0), so ask for a chunk and take what is ready.
+                    data: bytes = self._port.read(max(waiting, READ_CHUNK))
                     return data
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:
@@ -92,7 +96,14 @@ class SerialLink:
                 else:
                     # loop:// and friends have no descriptor: poll briefly.
                     time.sleep(min(remaining, 0.0005))
-        except (serial.SerialException, OSError) as exc:
+        except serial.SerialException as exc:
+            if "returned no data" in str(exc):
+                # pyserial's word for a readiness report with nothing behind it (a pty whose
+                # other side is not open yet, or was just closed): no data now, not a failure.
+                time.sleep(max(0.0, min(deadline - time.monotonic(), 0.01)))
+                return b""
+            raise LinkError(f"{self._url}: read failed: {_first_line(exc)}") from None
+        except OSError as exc:
             raise LinkError(f"{self._url}: read failed: {_first_line(exc)}") from None
 
     def write(self, data: bytes) -> None:
@@ -104,6 +115,8 @@ class SerialLink:
                 self._port.flush()
         except (serial.SerialException, OSError) as exc:
             raise LinkError(f"{self._url}: write failed: {_first_line(exc)}") from None
+        except queue.Full:  # loop:// holds a bounded queue nobody is reading
+            raise LinkError(f"{self._url}: write failed: the port's buffer is full") from None
 
     def close(self) -> None:
         self._port.close()
@@ -123,8 +136,11 @@ def _fileno_of(port: object) -> int | None:
 
 
 def _first_line(exc: BaseException) -> str:
-    text = str(exc).strip() or type(exc).__name__
-    return text.splitlines()[0]
+    text = (str(exc).strip() or type(exc).__name__).splitlines()[0]
+    # pyserial's socket ports already say "read failed: ..."; we add our own prefix.
+    for prefix in ("read failed: ", "write failed: "):
+        text = text.removeprefix(prefix)
+    return text
 
 
 class FdLink:
@@ -372,8 +388,15 @@ def link_pair(names: tuple[str, str] = ("pair:a", "pair:b")) -> tuple[PipeLink, 
     return PipeLink(names[0], b_to_a, a_to_b), PipeLink(names[1], a_to_b, b_to_a)
 
 
-def open_link(url: str, baud: int = DEFAULT_BAUD) -> SerialLink:
-    """Open a master-side port by pyserial URL; LinkError with a one-line reason on failure."""
+def open_link(url: str, baud: int = DEFAULT_BAUD) -> Link:
+    """Open a master-side port by pyserial URL; LinkError with a one-line reason on failure.
+
+    `fault:SPEC|URL` opens URL behind the fault injector (ctrlbus.faults, docs/reliability.md).
+    """
+    if url.startswith("fault:"):
+        from ctrlbus.faults import open_faulty_link  # it builds on this module
+
+        return open_faulty_link(url, baud)
     return SerialLink(url, baud)
 
 
