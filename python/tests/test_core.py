@@ -830,3 +830,26 @@ def test_garbage_before_an_intact_request_neither_retries_nor_desynchronises() -
     assert stats["errors_by_code"].get("0x0020") == 1
     assert stats["retries"] == 0 and stats["malformed_answers"] == 0 and stats["timeouts"] == 0
     assert core.connected and stats["disconnects"] == 0
+
+
+def test_answer_behind_a_false_frame_start_is_recovered_by_the_inter_byte_timeout() -> None:
+    """A false `50 00 01` (claims 256 bytes) in front of an answer holds it in the Core's decoder
+    until the line has been idle for the inter-byte timeout. The Core must apply that timeout while
+    it waits, not only when more bytes arrive, or the request times out and is sent again."""
+    planted: list[float] = []
+
+    def plant_false_header(data: bytes, now: float) -> bytes:
+        if not planted and data.startswith(bytes.fromhex("50030002")):  # a status answer
+            planted.append(now)
+            return bytes.fromhex("500001") + data
+        return data
+
+    base = BaseStack(SimulatedBase(World()), BaseConfig())
+    core = CoreSession(port="sim")
+    bus = VirtualBus(core, base, to_core=plant_false_header)
+    assert bus.run_until(lambda: core.connected, CONNECT_LIMIT_S), core.events()
+    bus.run_for(3.0)
+    stats = core.link_stats()
+    assert planted, "no status answer went out to plant the false header in front of"
+    assert stats["timeouts"] == 0 and stats["retries"] == 0, stats
+    assert core.battery_percent is not None and core.connected

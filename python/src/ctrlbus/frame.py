@@ -340,6 +340,15 @@ class StreamDecoder:
         return len(self._pending)
 
     @property
+    def timeout_due(self) -> float | None:
+        """The time after which the inter-byte timeout drops the candidate in progress, so a
+        caller with nothing else to do knows when to call feed(b"", now); None if there is no
+        candidate, no timeout, or no time known yet."""
+        if not self._pending or not self._timeout or self._last_time is None:
+            return None
+        return self._last_time + self._timeout
+
+    @property
     def stats(self) -> DecoderStats:
         """A snapshot of the counters."""
         return DecoderStats(

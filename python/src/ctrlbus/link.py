@@ -402,7 +402,7 @@ def open_link(url: str, baud: int = DEFAULT_BAUD) -> Link:
 
 def serve_link(
     *, pty: bool = False, listen: str | None = None, port: str | None = None, baud: int = DEFAULT_BAUD
-) -> PtyLink | TcpServerLink | SerialLink:
+) -> Link:
     """Open the base side of a link the way `--pty`, `--listen HOST:PORT` or `--port URL` say."""
     if sum((pty, listen is not None, port is not None)) != 1:
         raise UsageError("give exactly one of --pty, --listen HOST:PORT, --port URL")
@@ -412,4 +412,4 @@ def serve_link(
         host, tcp_port = parse_host_port(listen)
         return TcpServerLink(host, tcp_port)
     assert port is not None
-    return SerialLink(port, baud)
+    return open_link(port, baud)

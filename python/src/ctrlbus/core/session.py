@@ -299,6 +299,11 @@ class CoreSession:
         """The next request frame to send at time `now` (seconds), or None if nothing is due."""
         with self._lock:
             self._advance(now)
+            # A false frame start can hold a real answer behind it until the line has been idle
+            # for the inter-byte timeout; apply it now rather than only when more bytes come.
+            if self._decoder.buffered:
+                for frame_in in self._decoder.feed(b"", now):
+                    self._on_frame(frame_in, now)
             frame = self._poll_locked(now)
         self._notify()
         return frame
@@ -316,20 +321,27 @@ class CoreSession:
         """The earliest time at which poll() may return a frame or time something out, if no
         bytes arrive first; None when only arriving bytes (or a command) can change anything."""
         with self._lock:
-            outstanding = self._outstanding
-            if outstanding is not None:
-                return self._now if outstanding.resend else outstanding.deadline
-            step = self._step
-            if step is _Step.STOPPED:
-                return None
-            if self._stop_requested:
-                return self._now
-            if step is _Step.CONNECT:
-                return self._next_connect_at if self._next_connect_at is not None else self._now
-            if step is not _Step.POLLING or self._followups:
-                return self._now
-            dues = [due for name, due in self._next_due.items() if self._rate(name) > 0]
-            return min(dues) if dues else None
+            decoder_due = self._decoder.timeout_due
+            due = self._next_poll_time_locked()
+            if decoder_due is None:
+                return due
+            return decoder_due if due is None else min(due, decoder_due)
+
+    def _next_poll_time_locked(self) -> float | None:
+        outstanding = self._outstanding
+        if outstanding is not None:
+            return self._now if outstanding.resend else outstanding.deadline
+        step = self._step
+        if step is _Step.STOPPED:
+            return None
+        if self._stop_requested:
+            return self._now
+        if step is _Step.CONNECT:
+            return self._next_connect_at if self._next_connect_at is not None else self._now
+        if step is not _Step.POLLING or self._followups:
+            return self._now
+        dues = [due for name, due in self._next_due.items() if self._rate(name) > 0]
+        return min(dues) if dues else None
 
     def request_stop(self) -> None:
         """Stop on purpose: once the request in flight is settled, send SEND_EVENT CORE_DISCONNECT

@@ -21,7 +21,7 @@ from typing import Self
 from ctrlbus import binconf
 from ctrlbus.base import DEFAULT_WATCHDOG_S, BaseConfig, BaseRunner, BaseStack, Profile, parse_profile
 from ctrlbus.errors import BinaryConfigError, UsageError
-from ctrlbus.link import DEFAULT_BAUD, PtyLink, SerialLink, TcpServerLink, serve_link
+from ctrlbus.link import DEFAULT_BAUD, Link, PtyLink, TcpServerLink, serve_link
 from ctrlbus.sim.base import SimulatedBase
 from ctrlbus.sim.description import load_base_description
 from ctrlbus.sim.room import load_room
@@ -80,9 +80,7 @@ def build_simulated_stack(settings: SimSettings) -> tuple[SimulatedBase, BaseSta
 class SimServer:
     """A simulated base, its stack, the link it serves and the runner thread."""
 
-    def __init__(
-        self, sim: SimulatedBase, stack: BaseStack, link: PtyLink | TcpServerLink | SerialLink
-    ) -> None:
+    def __init__(self, sim: SimulatedBase, stack: BaseStack, link: Link) -> None:
         self.sim = sim
         self.stack = stack
         self.link = link
