@@ -6,7 +6,7 @@ BUILD := build
 JOBS  ?= 2
 DEMO_ARGS ?=
 
-.PHONY: all setup c-build firmware c-test c-test-asan lint py-test test demo size bench fuzz clean
+.PHONY: all setup c-build firmware c-test c-test-asan lint py-test test demo size bench fuzz fuzz-smoke clean
 
 all: test
 
@@ -41,7 +41,7 @@ lint: setup
 py-test: c-build firmware
 	@cd python && ../$(VENV)/bin/pytest -q
 
-test: c-test c-test-asan lint py-test
+test: c-test c-test-asan lint py-test fuzz-smoke
 	@echo "make test: all suites passed"
 
 demo: c-build firmware
@@ -55,6 +55,10 @@ bench: c-build
 
 fuzz: setup
 	@scripts/fuzz.sh $(FUZZ_SECONDS)
+
+# Each libFuzzer target for 30 s (part of `make test`).
+fuzz-smoke: setup
+	@scripts/fuzz.sh 30
 
 clean:
 	rm -rf $(BUILD)

@@ -263,6 +263,28 @@ int32_t ctrlbus_frame_encode(uint8_t *out, size_t out_size, uint8_t cmd, const u
 
 /* ---- decoder -------------------------------------------------------------------------------- */
 
+/* The bulk path (see CTRLBUS_DECODER_FAST in frame.h): on by default, off in builds optimised for
+ * size, which are MCU firmware builds. */
+#ifndef CTRLBUS_DECODER_FAST
+#if defined(__OPTIMIZE_SIZE__)
+#define CTRLBUS_DECODER_FAST 0
+#else
+#define CTRLBUS_DECODER_FAST 1
+#endif
+#endif
+
+/* Inlining hints for the bulk path, for GCC and clang (other compilers decide alone; without the
+ * bulk path, or optimising for size, the compiler decides too). OUT_OF_LINE keeps a rarer path in
+ * its own function so that its caller's common path saves no registers it does not need; IN_LINE
+ * copies a short step of the bulk path into each caller. */
+#if CTRLBUS_DECODER_FAST && defined(__GNUC__) && !defined(__OPTIMIZE_SIZE__)
+#define OUT_OF_LINE __attribute__((noinline))
+#define IN_LINE __inline__ __attribute__((always_inline))
+#else
+#define OUT_OF_LINE
+#define IN_LINE
+#endif
+
 /* decoder->state: the low three bits hold a result found but not yet taken by next(). */
 #define STATE_PENDING_MASK 0x07u
 /* An event has been raised since the last yielded frame: garbage stays quiet until a frame. */
@@ -282,6 +304,11 @@ int32_t ctrlbus_frame_encode(uint8_t *out, size_t out_size, uint8_t cmd, const u
 /* Time gaps at or beyond this are taken as "the clock went backwards" rather than a long wait. */
 #define TIME_BACKWARDS 0x80000000u
 
+/* Between calls, either a result waits to be handed out (its bits in the state), or a rescan is
+ * due (STATE_RESCAN), or the buffer holds, from `start`, nothing (and then start == end == 0 and
+ * STATE_IN_SPAN and STATE_FLUSHING are clear) or one incomplete candidate, with d->checksum the
+ * XOR of its bytes buffer[start..end) and STATE_FLUSHING clear. The bulk path relies on this. */
+
 static void set_flag(ctrlbus_decoder_t *d, uint8_t flag)
 {
     d->state = (uint8_t)(d->state | flag);
@@ -295,6 +322,22 @@ static void clear_flag(ctrlbus_decoder_t *d, uint8_t flag)
 static void count(uint32_t *counter)
 {
     *counter += 1u;
+}
+
+/* The header size of a candidate: flag and length bytes. */
+static uint32_t header_size(uint8_t flag)
+{
+    return flag == CTRLBUS_FLAG_STANDARD ? 2u : 3u;
+}
+
+/* The LEN field of a candidate whose header is at bytes[0..header). */
+static uint32_t length_field(const uint8_t *bytes, uint32_t header)
+{
+    uint32_t len_field = bytes[1];
+    if (header == 3u) {
+        len_field |= (uint32_t)bytes[2] << 8;
+    }
+    return len_field;
 }
 
 int32_t ctrlbus_decoder_init(ctrlbus_decoder_t *decoder, uint8_t *buffer, size_t buffer_size,
@@ -355,6 +398,17 @@ static ctrlbus_rx_t raise_event(ctrlbus_decoder_t *d, ctrlbus_rx_t event)
     return event;
 }
 
+/* Rules 2-3: the complete candidate at `start` is a frame with a command. It stays at `start`;
+ * ctrlbus_decoder_next() steps over it when it hands it out. */
+static ctrlbus_rx_t yield_frame(ctrlbus_decoder_t *d)
+{
+    if (d->stats != NULL) {
+        count(&d->stats->frames);
+    }
+    clear_flag(d, STATE_EVENT_SINCE_FRAME);
+    return CTRLBUS_RX_FRAME;
+}
+
 /* Rule 4: the candidate at `start` failed. Counts it, drops its flag byte and makes everything
  * still buffered its span. Returns true when the failure is outermost, so its event is raised. */
 static bool fail_candidate(ctrlbus_decoder_t *d, ctrlbus_rx_t kind)
@@ -387,20 +441,25 @@ static bool discard(ctrlbus_decoder_t *d, uint32_t n)
     return in_span;
 }
 
-/* Scans buffered bytes from offset `pos`, where d->checksum is the XOR of buffer[start..pos),
- * until a result is found (returned, not yet recorded as pending) or more bytes are needed
- * (CTRLBUS_RX_NONE, with d->checksum covering buffer[start..end)). A yielded frame stays at
- * `start`; ctrlbus_decoder_next() steps over it when it hands it out. */
+/* The buffer has run empty: restart at its front, which keeps later frames contiguous, and leave
+ * any failed candidate's span (nothing buffered can be in it any more). */
+static void settle_empty(ctrlbus_decoder_t *d)
+{
+    d->start = d->end = 0;
+    d->checksum = 0;
+    clear_flag(d, STATE_FLUSHING | STATE_IN_SPAN);
+}
+
+/* The general path, one buffered byte at a time: scans from offset `pos`, where d->checksum is the
+ * XOR of buffer[start..pos), until a result is found (returned, not yet recorded as pending) or
+ * more bytes are needed (CTRLBUS_RX_NONE, with d->checksum covering buffer[start..end)). */
 static ctrlbus_rx_t scan(ctrlbus_decoder_t *d, uint32_t pos)
 {
     const uint8_t *buf = d->buffer;
     for (;; pos = d->start) {
         uint32_t avail = d->end - d->start;
         if (avail == 0) {
-            /* Nothing buffered: restart at the front, which keeps later frames contiguous. */
-            d->start = d->end = 0;
-            d->checksum = 0;
-            clear_flag(d, STATE_FLUSHING | STATE_IN_SPAN);
+            settle_empty(d);
             return CTRLBUS_RX_NONE;
         }
         uint8_t flag = buf[d->start];
@@ -412,13 +471,10 @@ static ctrlbus_rx_t scan(ctrlbus_decoder_t *d, uint32_t pos)
             continue;
         }
         /* Rules 2 and 3: a candidate. Its size is known once its header is buffered. */
-        uint32_t header = flag == CTRLBUS_FLAG_STANDARD ? 2u : 3u;
+        uint32_t header = header_size(flag);
         ctrlbus_rx_t failure = CTRLBUS_RX_NONE;
         if (avail >= header) {
-            uint32_t len_field = buf[d->start + 1];
-            if (header == 3u) {
-                len_field |= (uint32_t)buf[d->start + 2] << 8;
-            }
+            uint32_t len_field = length_field(buf + d->start, header);
             uint32_t size = header + len_field + 1u;
             if (size > d->max_frame) {
                 failure = CTRLBUS_RX_OVERSIZE;
@@ -436,11 +492,7 @@ static ctrlbus_rx_t scan(ctrlbus_decoder_t *d, uint32_t pos)
                     }
                     continue;
                 } else {
-                    if (d->stats != NULL) {
-                        count(&d->stats->frames);
-                    }
-                    clear_flag(d, STATE_EVENT_SINCE_FRAME);
-                    return CTRLBUS_RX_FRAME;
+                    return yield_frame(d);
                 }
             }
         }
@@ -479,12 +531,17 @@ static ctrlbus_rx_t resume(ctrlbus_decoder_t *d)
     return scan(d, d->start);
 }
 
+/* Rule 5 would fail the partial candidate (if there is one) at now_ms. */
+static bool timed_out(const ctrlbus_decoder_t *d, uint32_t now_ms)
+{
+    uint32_t elapsed = now_ms - d->last_byte_ms;
+    return d->timeout_ms != 0 && elapsed > d->timeout_ms && elapsed < TIME_BACKWARDS;
+}
+
 /* Rule 5, checked before new bytes are taken. Returns a result to hold, or NONE. */
 static ctrlbus_rx_t apply_timeout(ctrlbus_decoder_t *d, uint32_t now_ms)
 {
-    uint32_t elapsed = now_ms - d->last_byte_ms;
-    if (d->timeout_ms == 0 || d->end == d->start || elapsed <= d->timeout_ms ||
-        elapsed >= TIME_BACKWARDS) {
+    if (d->end == d->start || !timed_out(d, now_ms)) {
         return CTRLBUS_RX_NONE;
     }
     set_flag(d, STATE_FLUSHING);
@@ -494,35 +551,163 @@ static ctrlbus_rx_t apply_timeout(ctrlbus_decoder_t *d, uint32_t now_ms)
     return scan(d, d->start);
 }
 
-size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, size_t len,
-                            uint32_t now_ms)
+/* Moves the partial candidate to the front of the buffer, to make room behind it. */
+static void move_to_front(ctrlbus_decoder_t *d)
 {
-    ctrlbus_decoder_t *d = decoder;
-    if (d == NULL || d->buffer == NULL) {
-        return len; /* nowhere to put them: report them taken so a caller's loop ends */
+    uint32_t keep = d->end - d->start;
+    for (uint32_t i = 0; i < keep; i++) { /* a plain loop: no libc needed on an MCU */
+        d->buffer[i] = d->buffer[d->start + i];
     }
-    if ((d->state & STATE_PENDING_MASK) != 0) {
+    d->start = 0;
+    d->end = keep;
+}
+
+#if CTRLBUS_DECODER_FAST
+/* ---- the bulk path: the same rules, many bytes per step ------------------------------------- */
+
+/* Appends n bytes to the buffer at dst and returns checksum XOR all of them. A machine word at a
+ * time: each word goes through memcpy, which compilers turn into plain loads and stores that are
+ * safe at any alignment; the tail is taken in halves (4, 2, 1 bytes). */
+IN_LINE static uint8_t copy_xor(uint8_t *dst, const uint8_t *src, size_t n, uint8_t checksum)
+{
+    if (n >= 2u) {
+        size_t acc = 0; /* the XOR of the bytes taken, lane by lane */
+        while (n >= sizeof acc) {
+            size_t word;
+            memcpy(&word, src, sizeof word);
+            memcpy(dst, &word, sizeof word);
+            acc ^= word;
+            src += sizeof word;
+            dst += sizeof word;
+            n -= sizeof word;
+        }
+        if (sizeof acc > 4u && n >= 4u) {
+            uint32_t word;
+            memcpy(&word, src, 4u);
+            memcpy(dst, &word, 4u);
+            acc ^= word;
+            src += 4;
+            dst += 4;
+            n -= 4u;
+        }
+        if (n >= 2u) {
+            uint16_t word;
+            memcpy(&word, src, 2u);
+            memcpy(dst, &word, 2u);
+            acc ^= word;
+            src += 2;
+            dst += 2;
+            n -= 2u;
+        }
+        for (unsigned shift = (unsigned)sizeof acc * 4u; shift >= 8u; shift /= 2u) {
+            acc ^= acc >> shift; /* fold: the low byte becomes the XOR of all the lanes */
+        }
+        checksum = (uint8_t)(checksum ^ (acc & 0xFFu));
+    }
+    if (n != 0) {
+        *dst = *src;
+        checksum ^= *src;
+    }
+    return checksum;
+}
+
+/* take_bulk()'s word for "complete, but not a frame with a command: scan() settles it". */
+#define RX_SETTLE_BY_SCAN ((ctrlbus_rx_t)0xFF)
+
+/* Takes as many of the n (> 0) input bytes at `in` as it can in one step and returns how many, or
+ * 0 when the byte at `in` needs the general path (a header split between feeds, an oversize
+ * candidate). For a decoder with no result pending, no rescan due and no timeout to apply. Its
+ * result goes to *rx: NONE, GARBAGE, FRAME or RX_SETTLE_BY_SCAN. It leaves exactly the state that
+ * feeding the same bytes one at a time through scan() leaves:
+ * - over an empty buffer, the bytes before the next flag are discarded (rule 1);
+ * - a candidate whose size is known (from the buffer, or from the input when nothing is buffered)
+ *   takes the bytes it still needs, as many as are here. When that completes it, the XOR of all
+ *   its bytes is 0 exactly when its checksum is right, and the common outcome (a frame with a
+ *   command) is settled here. */
+IN_LINE static size_t take_bulk(ctrlbus_decoder_t *d, const uint8_t *in, size_t n, ctrlbus_rx_t *rx)
+{
+    uint32_t have = d->end - d->start;
+    const uint8_t *cand = in;
+    *rx = CTRLBUS_RX_NONE;
+    if (have != 0) {
+        cand = d->buffer + d->start;
+    } else if ((in[0] | 0x40u) != CTRLBUS_FLAG_LONG) { /* neither 0x10 nor 0x50 */
+        size_t skip = 1;
+        while (skip < n && (in[skip] | 0x40u) != CTRLBUS_FLAG_LONG) {
+            skip++;
+        }
+        if (!(d->state & (STATE_EVENT_SINCE_FRAME | STATE_IN_SPAN))) {
+            skip = 1; /* the byte that raises the event ends this feed */
+            *rx = raise_event(d, CTRLBUS_RX_GARBAGE);
+        }
+        if (d->stats != NULL) {
+            d->stats->bytes_discarded += (uint32_t)skip;
+        }
+        settle_empty(d);
+        return skip;
+    }
+    uint32_t header = header_size(cand[0]);
+    if ((have != 0 ? have : n) < header) {
         return 0;
     }
-    if (hold(d, resume(d)) || hold(d, apply_timeout(d, now_ms))) {
+    uint32_t len_field = length_field(cand, header);
+    uint32_t size = header + len_field + 1u;
+    if (size > d->max_frame || size <= have) {
+        return 0; /* oversize, or (never: scan() settles it) a complete candidate */
+    }
+    uint32_t need = size - have;
+    uint32_t take = need <= n ? need : (uint32_t)n;
+    if (d->end + take > d->max_frame) {
+        move_to_front(d); /* the candidate fits the buffer, so start > 0 here */
+    }
+    d->checksum = copy_xor(d->buffer + d->end, in, take, d->checksum);
+    d->end += take;
+    if (take == need) {
+        *rx = d->checksum == 0 && len_field != 0 ? yield_frame(d) : RX_SETTLE_BY_SCAN;
+    }
+    return take;
+}
+
+/* For RX_SETTLE_BY_SCAN: scan() settles the complete candidate (a checksum failure with its
+ * backtracking, or an empty frame), resumed at its last byte. */
+static ctrlbus_rx_t settle_by_scan(ctrlbus_decoder_t *d)
+{
+    uint32_t last = d->end - 1u;
+    d->checksum ^= d->buffer[last]; /* scan() wants the XOR of the bytes before `last` */
+    return scan(d, last);
+}
+#endif
+
+/* ctrlbus_decoder_feed() for a usable decoder: the general path. */
+OUT_OF_LINE static size_t feed_bytes(ctrlbus_decoder_t *d, const uint8_t *data, size_t len,
+                                     uint32_t now_ms)
+{
+    if ((d->state & STATE_PENDING_MASK) != 0 || hold(d, resume(d)) ||
+        hold(d, apply_timeout(d, now_ms))) {
         return 0;
     }
-    if (data == NULL) {
+    if (data == NULL || len == 0) {
         return len; /* no bytes: report them all taken so a caller's loop ends */
     }
+    d->last_byte_ms = now_ms; /* at least one byte is taken below */
     for (size_t used = 0; used < len;) {
+#if CTRLBUS_DECODER_FAST
+        ctrlbus_rx_t rx;
+        size_t taken = take_bulk(d, data + used, len - used, &rx);
+        if (taken > 0) {
+            used += taken;
+            if (hold(d, rx == RX_SETTLE_BY_SCAN ? settle_by_scan(d) : rx)) {
+                return used;
+            }
+            continue;
+        }
+#endif
         if (d->end == d->max_frame) {
             /* Full: move the partial candidate to the front. While waiting, it is shorter than
              * max_frame (it would have completed or failed otherwise), so start > 0 here. */
-            uint32_t keep = d->end - d->start;
-            for (uint32_t i = 0; i < keep; i++) { /* a plain loop: no libc needed on an MCU */
-                d->buffer[i] = d->buffer[d->start + i];
-            }
-            d->start = 0;
-            d->end = keep;
+            move_to_front(d);
         }
         d->buffer[d->end++] = data[used++];
-        d->last_byte_ms = now_ms;
         if (hold(d, scan(d, d->end - 1u))) {
             return used;
         }
@@ -530,10 +715,112 @@ size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, siz
     return len;
 }
 
+#if CTRLBUS_DECODER_FAST
+/* ctrlbus_decoder_feed() for a usable decoder with no result pending, no rescan due and some bytes:
+ * one take_bulk() step, then the general path for whatever remains. */
+OUT_OF_LINE static size_t feed_bulk(ctrlbus_decoder_t *d, const uint8_t *data, size_t len,
+                                    uint32_t now_ms)
+{
+    if (d->end != d->start && timed_out(d, now_ms)) {
+        return feed_bytes(d, data, len, now_ms);
+    }
+    ctrlbus_rx_t rx;
+    size_t taken = take_bulk(d, data, len, &rx);
+    if (taken == 0) {
+        return feed_bytes(d, data, len, now_ms);
+    }
+    d->last_byte_ms = now_ms;
+    if (rx == RX_SETTLE_BY_SCAN) {
+        rx = settle_by_scan(d);
+    }
+    if (hold(d, rx) || taken == len) {
+        return taken;
+    }
+    return taken + feed_bytes(d, data + taken, len - taken, now_ms);
+}
+#endif
+
+size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, size_t len,
+                            uint32_t now_ms)
+{
+    ctrlbus_decoder_t *d = decoder;
+    if (d == NULL || d->buffer == NULL) {
+        return len; /* nowhere to put them: report them taken so a caller's loop ends */
+    }
+#if CTRLBUS_DECODER_FAST
+    if (data != NULL && len != 0 && (d->state & (STATE_PENDING_MASK | STATE_RESCAN)) == 0) {
+        /* The most common cases, settled right here: nothing buffered, and the input starts with
+         * a whole valid frame with a command, or with the start of a frame that goes on beyond
+         * it. This is take_bulk() cut down to those cases (start is 0, the buffer being empty); a
+         * candidate that turns out otherwise is taken again by feed_bulk(). */
+        if (d->end == d->start && len >= CTRLBUS_STANDARD_OVERHEAD &&
+            (data[0] | 0x40u) == CTRLBUS_FLAG_LONG) {
+            uint32_t header = header_size(data[0]);
+            uint32_t len_field = length_field(data, header);
+            uint32_t size = header + len_field + 1u;
+            if (size > len && size <= d->max_frame) {
+                d->checksum = copy_xor(d->buffer, data, len, 0);
+                d->end = (uint32_t)len;
+                d->last_byte_ms = now_ms;
+                return len;
+            }
+            if (len_field != 0 && size <= len && size <= d->max_frame &&
+                copy_xor(d->buffer, data, size, 0) == 0) {
+                d->end = size;
+                d->last_byte_ms = now_ms;
+                hold(d, yield_frame(d));
+                return size;
+            }
+        }
+        return feed_bulk(d, data, len, now_ms);
+    }
+#endif
+    return feed_bytes(d, data, len, now_ms);
+}
+
 void ctrlbus_decoder_tick(ctrlbus_decoder_t *decoder, uint32_t now_ms)
 {
     (void)ctrlbus_decoder_feed(decoder, NULL, 0, now_ms);
 }
+
+/* Hands out the pending result rx (already cleared from the state). */
+IN_LINE static ctrlbus_rx_t hand_out(ctrlbus_decoder_t *d, ctrlbus_frame_t *frame, ctrlbus_rx_t rx)
+{
+    if (rx == CTRLBUS_RX_FRAME) {
+        const uint8_t *bytes = d->buffer + d->start;
+        uint32_t header = header_size(bytes[0]);
+        uint32_t len_field = length_field(bytes, header);
+        if (frame != NULL) {
+            frame->is_long = header == 3u;
+            frame->cmd = bytes[header];
+            frame->payload = bytes + header + 1u;
+            frame->payload_len = len_field - 1u;
+        }
+        d->start += header + len_field + 1u;
+    }
+    /* Scanning resumes at `start` at the next call. With the bulk path, when nothing is left
+     * buffered, the buffer is settled now instead (as that scan would), which keeps the next call
+     * cheap; the frame's bytes stay where they are until then. */
+#if CTRLBUS_DECODER_FAST
+    if (d->start == d->end) {
+        settle_empty(d);
+        return rx;
+    }
+#endif
+    set_flag(d, STATE_RESCAN);
+    return rx;
+}
+
+#if CTRLBUS_DECODER_FAST
+/* ctrlbus_decoder_next() when nothing is pending but a rescan is due: out of line, so that handing
+ * out a pending result saves no registers. (Without the bulk path, one call of hand_out() is
+ * smaller.) */
+OUT_OF_LINE static ctrlbus_rx_t next_after_rescan(ctrlbus_decoder_t *d, ctrlbus_frame_t *frame)
+{
+    ctrlbus_rx_t rx = resume(d);
+    return rx == CTRLBUS_RX_NONE ? rx : hand_out(d, frame, rx);
+}
+#endif
 
 ctrlbus_rx_t ctrlbus_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *frame)
 {
@@ -542,25 +829,18 @@ ctrlbus_rx_t ctrlbus_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *f
         return CTRLBUS_RX_NONE;
     }
     ctrlbus_rx_t rx = (ctrlbus_rx_t)(d->state & STATE_PENDING_MASK);
-    if (rx == CTRLBUS_RX_NONE) {
-        rx = resume(d);
-        if (rx == CTRLBUS_RX_NONE) {
-            return CTRLBUS_RX_NONE;
-        }
+#if CTRLBUS_DECODER_FAST
+    if (rx != CTRLBUS_RX_NONE) {
+        clear_flag(d, STATE_PENDING_MASK);
+        return hand_out(d, frame, rx);
     }
-    d->state = (uint8_t)((d->state & (uint8_t)~STATE_PENDING_MASK) | STATE_RESCAN);
-    if (rx == CTRLBUS_RX_FRAME) {
-        const uint8_t *bytes = d->buffer + d->start;
-        bool is_long = bytes[0] == CTRLBUS_FLAG_LONG;
-        uint32_t len_field = is_long ? ((uint32_t)bytes[1] | ((uint32_t)bytes[2] << 8)) : bytes[1];
-        uint32_t header = is_long ? 3u : 2u;
-        if (frame != NULL) {
-            frame->is_long = is_long;
-            frame->cmd = bytes[header];
-            frame->payload = bytes + header + 1u;
-            frame->payload_len = len_field - 1u;
-        }
-        d->start += header + len_field + 1u;
+    return (d->state & STATE_RESCAN) ? next_after_rescan(d, frame) : CTRLBUS_RX_NONE;
+#else
+    if (rx != CTRLBUS_RX_NONE) {
+        clear_flag(d, STATE_PENDING_MASK);
+    } else if (!(d->state & STATE_RESCAN) || (rx = resume(d)) == CTRLBUS_RX_NONE) {
+        return CTRLBUS_RX_NONE;
     }
-    return rx;
+    return hand_out(d, frame, rx);
+#endif
 }

@@ -1,0 +1,18 @@
+/* The decoder of frame.c built once more without its bulk path (CTRLBUS_DECODER_FAST 0, the
+ * byte-by-byte scan alone) and under other names, so that a fuzz target can run both side by side
+ * and require the same results from them: the byte path is the decoder as first written, the bulk
+ * path an optimisation that must not change a thing. Same types and contracts as ctrlbus/frame.h. */
+#ifndef CTRLBUS_FUZZ_FRAME_BYTEPATH_H
+#define CTRLBUS_FUZZ_FRAME_BYTEPATH_H
+
+#include "ctrlbus/frame.h"
+
+int32_t bytepath_decoder_init(ctrlbus_decoder_t *decoder, uint8_t *buffer, size_t buffer_size,
+                              uint16_t timeout_ms, ctrlbus_decoder_stats_t *stats);
+size_t bytepath_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, size_t len,
+                             uint32_t now_ms);
+void bytepath_decoder_tick(ctrlbus_decoder_t *decoder, uint32_t now_ms);
+ctrlbus_rx_t bytepath_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *frame);
+bool bytepath_decoder_busy(const ctrlbus_decoder_t *decoder);
+
+#endif

@@ -1,0 +1,225 @@
+/* Fuzz target: the stream decoder (ctrlbus/frame.h) on arbitrary bytes, cut and timed at random.
+ *
+ * Input: three setting bytes, then the stream.
+ *   byte 0  bits 0-2: the buffer, max_frame: 5, 6, 7, 16, 64, 255, 512 or 65539 bytes;
+ *           bits 3-5: the inter-byte timeout: off, 1, 2, 5, 10, 20, 100 or 1000 ms;
+ *           bits 6-7: how the stream is cut into feeds: 1-8, 1-64 or 1-600 bytes, or whole.
+ *   bytes 1-2: the seed of the cuts, of the time between feeds (none, up to and past the timeout,
+ *           rarely a jump the decoder takes for a clock that went backwards), of the ticks in
+ *           between, and of the start time (anywhere: the clock wraps around).
+ * Three decoders take the same stream:
+ *   A  frame.c's decoder, fed in those cuts. Every call is checked: guard regions around its
+ *      buffer, every frame (inside the buffer, right checksum and length, at most max_frame), the
+ *      feed/next contract (a feed stops early only with a result waiting), the counters, and that
+ *      every byte taken is in a frame, discarded, or still buffered.
+ *   B  the byte-path twin (frame_bytepath.h), fed the same cuts: every call must give what A's
+ *      gave (bytes taken, results, frames, counters, busy).
+ *   C  frame.c's decoder fed one byte per call at the same times: the same results and counters
+ *      as A in the end, since the outcome must not depend on how the input is cut (§7.1). */
+#include <string.h>
+
+#include "frame_bytepath.h"
+#include "fuzz_common.h"
+
+static const uint32_t BUFFER_SIZES[8] = {5, 6, 7, 16, 64, 255, 512, CTRLBUS_FRAME_MAX};
+static const uint16_t TIMEOUTS[8] = {0, 1, 2, 5, 10, 20, 100, 1000};
+static const uint32_t CUT_MAX[4] = {8, 64, 600, 0}; /* 0: the whole stream in one feed */
+
+typedef struct {
+    ctrlbus_decoder_t decoder;
+    ctrlbus_decoder_stats_t stats;
+    fuzz_guarded_t buffer;
+    fuzz_log_t *log;
+    uint64_t taken;       /* bytes the decoder took */
+    uint64_t frame_bytes; /* bytes of the frames it handed out */
+} run_t;
+
+static fuzz_log_t log_a, log_c;
+static uint32_t max_frame;
+
+static uint64_t frame_size(const ctrlbus_frame_t *frame)
+{
+    return frame->payload_len + (frame->is_long ? CTRLBUS_LONG_OVERHEAD : CTRLBUS_STANDARD_OVERHEAD);
+}
+
+/* Every byte taken is in a handed-out frame, discarded, or still buffered (the partial candidate
+ * between start and end: white-box, the decoder is ours). Only valid with nothing waiting. */
+static void check_accounting(const run_t *r)
+{
+    fuzz_check_stats(&r->stats);
+    FUZZ_CHECK(r->decoder.end >= r->decoder.start && r->decoder.end <= max_frame);
+    FUZZ_CHECK(r->taken == r->frame_bytes + r->stats.bytes_discarded +
+                               (r->decoder.end - r->decoder.start));
+}
+
+static void check_same_frame(const ctrlbus_frame_t *a, const ctrlbus_frame_t *b)
+{
+    FUZZ_CHECK(a->is_long == b->is_long && a->cmd == b->cmd && a->payload_len == b->payload_len);
+    FUZZ_CHECK(a->payload_len == 0 || memcmp(a->payload, b->payload, a->payload_len) == 0);
+}
+
+/* Takes every waiting result from A and B, which must agree; returns how many. */
+static size_t drain_both(run_t *a, run_t *b)
+{
+    size_t results = 0;
+    for (;;) {
+        ctrlbus_frame_t fa;
+        ctrlbus_frame_t fb;
+        ctrlbus_rx_t ra = ctrlbus_decoder_next(&a->decoder, &fa);
+        ctrlbus_rx_t rb = bytepath_decoder_next(&b->decoder, &fb);
+        fuzz_guarded_check(&a->buffer);
+        fuzz_guarded_check(&b->buffer);
+        FUZZ_CHECK(ra == rb);
+        if (ra == CTRLBUS_RX_NONE) {
+            break;
+        }
+        /* A result needs a byte, and a failed candidate leaves at most max_frame results. */
+        FUZZ_CHECK(++results <= (size_t)max_frame + 2u);
+        if (ra == CTRLBUS_RX_FRAME) {
+            fuzz_check_frame(&fa, a->buffer.buffer, max_frame);
+            fuzz_check_frame(&fb, b->buffer.buffer, max_frame);
+            check_same_frame(&fa, &fb);
+            a->frame_bytes += frame_size(&fa);
+            b->frame_bytes += frame_size(&fb);
+        } else {
+            FUZZ_CHECK(ra >= CTRLBUS_RX_GARBAGE && ra <= CTRLBUS_RX_EMPTY_FRAME);
+        }
+        fuzz_log_add(a->log, ra, &fa);
+    }
+    FUZZ_CHECK(memcmp(&a->stats, &b->stats, sizeof a->stats) == 0);
+    FUZZ_CHECK(ctrlbus_decoder_busy(&a->decoder) == bytepath_decoder_busy(&b->decoder));
+    check_accounting(a);
+    return results;
+}
+
+static void feed_both(run_t *a, run_t *b, const uint8_t *data, size_t len, uint32_t now)
+{
+    while (len > 0) {
+        size_t used_a = ctrlbus_decoder_feed(&a->decoder, data, len, now);
+        size_t used_b = bytepath_decoder_feed(&b->decoder, data, len, now);
+        FUZZ_CHECK(used_a == used_b && used_a <= len);
+        a->taken += used_a;
+        b->taken += used_b;
+        size_t results = drain_both(a, b);
+        /* A feed stops early only when a result is waiting (and never spins). */
+        FUZZ_CHECK(used_a == len || results > 0);
+        data += used_a;
+        len -= used_a;
+    }
+}
+
+static void tick_both(run_t *a, run_t *b, uint32_t now)
+{
+    ctrlbus_decoder_tick(&a->decoder, now);
+    bytepath_decoder_tick(&b->decoder, now);
+    (void)drain_both(a, b);
+}
+
+/* Decoder C: the same bytes one per call. */
+static void drain_one(run_t *c)
+{
+    ctrlbus_frame_t frame;
+    for (ctrlbus_rx_t rx; (rx = ctrlbus_decoder_next(&c->decoder, &frame)) != CTRLBUS_RX_NONE;) {
+        if (rx == CTRLBUS_RX_FRAME) {
+            fuzz_check_frame(&frame, c->buffer.buffer, max_frame);
+            c->frame_bytes += frame_size(&frame);
+        }
+        fuzz_log_add(c->log, rx, &frame);
+    }
+    fuzz_guarded_check(&c->buffer);
+}
+
+static void feed_bytewise(run_t *c, const uint8_t *data, size_t len, uint32_t now)
+{
+    for (size_t i = 0; i < len;) {
+        size_t used = ctrlbus_decoder_feed(&c->decoder, data + i, 1, now);
+        FUZZ_CHECK(used <= 1);
+        c->taken += used;
+        i += used;
+        drain_one(c);
+    }
+    check_accounting(c);
+}
+
+static void run_init(run_t *r, fuzz_log_t *log, uint16_t timeout, bool bytepath)
+{
+    memset(&r->stats, 0, sizeof r->stats);
+    fuzz_guarded_init(&r->buffer, max_frame);
+    int32_t result = bytepath ? bytepath_decoder_init(&r->decoder, r->buffer.buffer, max_frame,
+                                                      timeout, &r->stats)
+                              : ctrlbus_decoder_init(&r->decoder, r->buffer.buffer, max_frame,
+                                                     timeout, &r->stats);
+    FUZZ_CHECK(result == CTRLBUS_OK);
+    r->log = log;
+    r->taken = r->frame_bytes = 0;
+    if (log != NULL) {
+        fuzz_log_clear(log);
+    }
+}
+
+/* A time step between feeds: mostly none or short, sometimes just at or past the timeout. */
+static uint32_t time_step(fuzz_rng_t *rng, uint16_t timeout)
+{
+    switch (fuzz_rng_below(rng, 16)) {
+    case 0: return 1;
+    case 1: return timeout;
+    case 2: return timeout + 1u;
+    case 3: return 2u * timeout + 7u;
+    case 4: return fuzz_rng_below(rng, 3u * timeout + 3u);
+    case 5: return fuzz_rng_below(rng, 64) == 0 ? 0x80000000u + fuzz_rng_below(rng, 1000) : 0;
+    default: return 0;
+    }
+}
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
+{
+    fuzz_input_t in = {data, size};
+    uint8_t settings = fuzz_u8(&in);
+    fuzz_rng_t rng;
+    fuzz_rng_seed(&rng, fuzz_u16(&in));
+    max_frame = BUFFER_SIZES[settings & 7u];
+    uint16_t timeout = TIMEOUTS[(settings >> 3) & 7u];
+    uint32_t cut_max = CUT_MAX[settings >> 6];
+    const uint8_t *stream = in.data;
+    size_t stream_len = in.left;
+
+    static run_t a, b, c;
+    run_init(&a, &log_a, timeout, false);
+    run_init(&b, NULL, timeout, true); /* compared with A call by call: no log of its own */
+    run_init(&c, &log_c, timeout, false);
+
+    uint32_t now = fuzz_rng(&rng);
+    for (size_t pos = 0; pos < stream_len;) {
+        if (fuzz_rng_below(&rng, 4) == 0) {
+            uint32_t tick_at = now + time_step(&rng, timeout);
+            tick_both(&a, &b, tick_at);
+            ctrlbus_decoder_tick(&c.decoder, tick_at);
+            drain_one(&c);
+            now = tick_at;
+        }
+        now += time_step(&rng, timeout);
+        size_t cut = stream_len - pos;
+        if (cut_max != 0 && cut > 1) {
+            size_t most = cut < cut_max ? cut : cut_max;
+            cut = 1u + fuzz_rng_below(&rng, (uint32_t)most);
+        }
+        feed_both(&a, &b, stream + pos, cut, now);
+        feed_bytewise(&c, stream + pos, cut, now);
+        pos += cut;
+    }
+    /* The line goes quiet: a partial frame left over times out. */
+    uint32_t end = now + timeout + 1u;
+    tick_both(&a, &b, end);
+    ctrlbus_decoder_tick(&c.decoder, end);
+    drain_one(&c);
+
+    FUZZ_CHECK(a.taken == stream_len && c.taken == stream_len);
+    FUZZ_CHECK(fuzz_log_equal(&log_a, &log_c));
+    FUZZ_CHECK(memcmp(&a.stats, &c.stats, sizeof a.stats) == 0);
+    if (timeout != 0) {
+        /* After the final timeout nothing is left: every byte is in a frame or discarded. */
+        FUZZ_CHECK(!ctrlbus_decoder_busy(&a.decoder) && !ctrlbus_decoder_busy(&c.decoder));
+        FUZZ_CHECK(a.taken == a.frame_bytes + a.stats.bytes_discarded);
+    }
+    return 0;
+}
