@@ -119,10 +119,155 @@ def _plot_garbage_recovery(result: dict[str, Any], img_dir: Path) -> Path:
     )
 
 
+def _plot_base_exchange(result: dict[str, Any], img_dir: Path) -> Path:
+    """Where one exchange's instructions go, per function (request fed whole)."""
+    f = result["figures"]
+    profile = [(name, cost) for name, cost in result["details"]["profile_per_exchange"]["frames"]]
+    fig, ax = plt.subplots(figsize=(7.5, 4.4), dpi=110)
+    names = [name for name, _ in reversed(profile)]
+    costs = [cost for _, cost in reversed(profile)]
+    bars = ax.barh(names, costs)
+    for bar, cost in zip(bars, costs, strict=True):
+        ax.annotate(
+            f"{cost:,.0f}",
+            (bar.get_width(), bar.get_y() + bar.get_height() / 2),
+            va="center",
+            fontsize=7,
+            xytext=(3, 0),
+            textcoords="offset points",
+        )
+    ax.set_xlabel("instructions per exchange (callgrind, gcc -O2)")
+    ax.set_title(
+        f"C base stack, one SET_V_AND_GET_DEADRECKON exchange (request fed whole): "
+        f"{f['frames_instructions_per_exchange']:,.0f} instructions",
+        fontsize=9,
+    )
+    ax.margins(x=0.15)
+    fig.tight_layout()
+    path = img_dir / "bench-base-exchange.png"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
+def _plot_footprint(result: dict[str, Any], img_dir: Path) -> Path:
+    """The base stack's linked .text per CPU, stacked by the object file it comes from."""
+    by_cpu: dict[str, dict[str, dict[str, int]]] = result["details"]["base_stack_by_object"]
+    cpus = list(by_cpu)
+    owners = sorted(
+        {o for objs in by_cpu.values() for o in objs},
+        key=lambda o: -by_cpu[cpus[0]].get(o, {}).get("text", 0),
+    )
+    fig, ax = plt.subplots(figsize=(7.5, 4.4), dpi=110)
+    bottoms = [0.0] * len(cpus)
+    for owner in owners:
+        values = [float(by_cpu[cpu].get(owner, {}).get("text", 0)) for cpu in cpus]
+        ax.bar(cpus, values, 0.5, bottom=bottoms, label=owner)
+        bottoms = [b + v for b, v in zip(bottoms, values, strict=True)]
+    for x, total in enumerate(bottoms):
+        ax.annotate(
+            f"{total:,.0f} B",
+            (x, total),
+            ha="center",
+            va="bottom",
+            fontsize=8,
+            xytext=(0, 2),
+            textcoords="offset points",
+        )
+    ax.axhline(2048, color="black", linestyle="--", linewidth=1)
+    ax.annotate("goal: 2 KiB", (-0.45, 2048), ha="left", va="bottom", fontsize=8, zorder=4)
+    ax.set_ylabel(".text bytes (arm-none-eabi-gcc -Os, --gc-sections)")
+    ax.set_title("C base stack, linked: where the .text comes from", fontsize=10)
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=3, frameon=False)
+    ax.margins(y=0.1)
+    fig.tight_layout()
+    path = img_dir / "bench-footprint.png"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
+def _plot_end_to_end(result: dict[str, Any], img_dir: Path) -> Path:
+    f = result["figures"]
+    bases = [("c_base", "C host base (posix_base)"), ("python_base", "Python simulated base")]
+    present = [(key, label) for key, label in bases if f"{key}_core_exchanges_per_s" in f]
+    series: list[tuple[str, list[float | None]]] = [
+        (
+            "SET_V back to back (master loop)",
+            [f.get(f"{key}_back_to_back_exchanges_per_s") for key, _ in present],
+        ),
+        (
+            "Core emulator, SET_V at its 1000 Hz ceiling",
+            [f.get(f"{key}_core_exchanges_per_s") for key, _ in present],
+        ),
+    ]
+    return _bar_chart(
+        img_dir / "bench-end-to-end.png",
+        "Exchanges per second over a pty, no baud limit",
+        "exchanges / s",
+        [label for _, label in present],
+        series,
+    )
+
+
+def _plot_link_efficiency(result: dict[str, Any], img_dir: Path) -> Path:
+    """Efficiency against the time per exchange spent off the line: the virtual-time sweep, and
+    where the real-time runs landed."""
+    details = result["details"]
+    sweep = details["virtual_time"]["sweep"]
+    fig, ax = plt.subplots(figsize=(7.5, 4.4), dpi=110)
+    ax.plot(
+        [p["base_reply_latency_ms"] for p in sweep],
+        [p["efficiency_pct"] for p in sweep],
+        marker="o",
+        color="0.4",
+        label="virtual time: Core instant, base replying after x",
+    )
+    bases = (("c_base", "C host base"), ("python_base", "Python simulated base"))
+    masters = (("core", "Core emulator"), ("loop", "master loop"))
+    for key, label in bases:
+        for master, master_label in masters:
+            run = details.get(key, {}).get(master)
+            if run is None:
+                continue
+            off_line = run["period_ms"] - run["line_time_ms"]
+            ax.scatter(
+                [off_line],
+                [run["efficiency_pct"]],
+                zorder=3,
+                label=f"real time: {label}, {master_label} ({run['efficiency_pct']:.1f} %)",
+            )
+    ax.axhline(95.0, color="black", linestyle="--", linewidth=1)
+    ax.annotate(
+        "goal: 95 %",
+        (max(p["base_reply_latency_ms"] for p in sweep), 95.0),
+        ha="right",
+        va="bottom",
+        fontsize=8,
+    )
+    ax.set_xscale("symlog", linthresh=0.1)
+    ax.set_xlabel("time per exchange off the line (base reply + master turnaround), ms")
+    ax.set_ylabel("% of the theoretical maximum")
+    ax.set_title("SET_V_AND_GET_DEADRECKON at 115200 8N1: link efficiency", fontsize=10)
+    ax.legend(fontsize=8, loc="lower left", frameon=False)
+    fig.tight_layout()
+    path = img_dir / "bench-link-efficiency.png"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
 PLOTTERS = {
     "c_parser_cost": _plot_c_parser_cost,
     "python_throughput": _plot_python_throughput,
     "garbage_recovery": _plot_garbage_recovery,
+    "base_exchange": _plot_base_exchange,
+    "footprint": _plot_footprint,
+    "end_to_end": _plot_end_to_end,
+    "link_efficiency": _plot_link_efficiency,
 }
 
 

@@ -31,6 +31,10 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
+import endtoend
+import exchange
+import footprint
+import soak
 from callgrind import HarnessRun, callgrind, compile_harness, per_byte, top_functions
 from common import (
     BENCH_DIR,
@@ -482,38 +486,30 @@ def _pending(reason: str) -> Callable[[BenchContext, Options], Outcome]:
     return slot
 
 
-benchmark(
-    "base_exchange",
-    "Full base exchange: instructions per SET_V_AND_GET_DEADRECKON (callgrind)",
-    "measured and published (parse the request, stream out the answer through the base stack)",
-)(
-    _pending(
-        "waits for the C base stack (c/include/ctrlbus/base.h): parse one SET_V_AND_GET_DEADRECKON "
-        "request and stream out its answer under callgrind, minus a baseline"
-    )
-)
+@benchmark(soak.NAME, soak.TITLE, soak.GOAL)
+def fault_soak(ctx: BenchContext, opts: Options) -> Outcome:
+    found = soak.run(ctx)  # bench/soak.py; docs/reliability.md
+    return Outcome(found.status, found.figures, found.rows, found.pending, found.details)
 
-benchmark(
-    "footprint",
-    "Footprint from make size (cortex-m0plus/m3/m4)",
-    "≤ 2 KiB .text, ≤ 64 B state",
-)(
-    _pending(
-        "waits for scripts/size.sh (make size); its table goes in the size section of docs/performance.md"
-    )
-)
 
-benchmark(
-    "end_to_end",
-    "End to end: exchanges/s, Core emulator against the C host base and the Python simulated base",
-    "measured and published (pty, no baud limit)",
-)(_pending("waits for the Core emulator (ctrlbus.core), the C host base and the Python simulated base"))
+@benchmark(exchange.NAME, exchange.TITLE, exchange.GOAL)
+def base_exchange(ctx: BenchContext, opts: Options) -> Outcome:
+    return Outcome(**vars(exchange.run(ctx)))  # bench/exchange.py
 
-benchmark(
-    "link_efficiency",
-    "Link efficiency at 115200 8N1: SET_V exchanges/s over the theoretical maximum",
-    "≥ 95 %",
-)(_pending("waits for the Core emulator and a baud-limited link emulation (10 bits per byte)"))
+
+@benchmark(footprint.NAME, footprint.TITLE, footprint.GOAL)
+def footprint_table(ctx: BenchContext, opts: Options) -> Outcome:
+    return Outcome(**vars(footprint.run(ctx)))  # bench/footprint.py
+
+
+@benchmark(endtoend.E2E_NAME, endtoend.E2E_TITLE, endtoend.E2E_GOAL)
+def end_to_end(ctx: BenchContext, opts: Options) -> Outcome:
+    return Outcome(**vars(endtoend.run_end_to_end(ctx)))  # bench/endtoend.py
+
+
+@benchmark(endtoend.LINK_NAME, endtoend.LINK_TITLE, endtoend.LINK_GOAL)
+def link_efficiency(ctx: BenchContext, opts: Options) -> Outcome:
+    return Outcome(**vars(endtoend.run_link_efficiency(ctx)))  # bench/endtoend.py
 
 
 # ---------------------------------------------------------------------------------------------
@@ -614,6 +610,7 @@ def main(argv: list[str] | None = None) -> int:
     doc_out = out_dir / "performance.md" if args.smoke else doc
     plots = render_plots(published, img_dir)
     update_performance_md(doc, doc_out, published, plots)
+    soak.update_reliability_md(published, out_dir if args.smoke else None)
     print(f"bench: results in {out_dir}, plots in {img_dir}, tables in {doc_out}")
     return 1 if any(r["status"] == FAILED for r in results) else 0
 

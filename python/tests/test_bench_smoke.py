@@ -24,6 +24,7 @@ BENCHMARKS = {
     "c_parser_cost",
     "python_throughput",
     "garbage_recovery",
+    "soak",
     "base_exchange",
     "footprint",
     "end_to_end",
@@ -207,3 +208,169 @@ def test_reference_model_waits_for_ever_and_resets_on_oversize() -> None:
     model = module.ReferenceModelDecoder()
     assert model.feed(b"\x50\xff\x01" + STATUS_REQUEST) == [STATUS_REQUEST]
     assert model.counters.oversize == 1
+
+
+# --- base_exchange, footprint, end_to_end, link_efficiency (bench/exchange.py, footprint.py,
+# endtoend.py): their smoke results are whole and consistent; no speed is asserted.
+
+
+def test_base_exchange_figures(smoke: tuple[Path, dict[str, dict[str, Any]]]) -> None:
+    result = smoke[1]["base_exchange"]
+    assert result["status"] in RAN | {"pending"}
+    if result["status"] == "pending":
+        return
+    f = result["figures"]
+    assert f["exchanges"] > 0 and f["request_bytes"] == 17 and f["answer_bytes"] in (18, 22)
+    for mode in ("frames", "bytes"):
+        assert f[f"{mode}_instructions_per_exchange"] > 0
+        report = result["details"]["harness_reports"][mode]
+        assert report["exchanges"] == f["exchanges"]
+        assert report["answer_bytes"] == f["exchanges"] * f["answer_bytes"]
+    # Streamed: several write calls per answer, none holding the whole answer.
+    assert f["write_calls_per_answer"] > 1 and 0 < f["largest_write_bytes"] < f["answer_bytes"]
+    assert "valgrind --tool=callgrind" in "\n".join(result["tool_commands"])
+    assert result["details"]["profile_per_exchange"]["frames"]
+
+
+def test_footprint_figures(smoke: tuple[Path, dict[str, dict[str, Any]]]) -> None:
+    result = smoke[1]["footprint"]
+    assert result["status"] in RAN | {"pending"}
+    if result["status"] == "pending":
+        return
+    f = result["figures"]
+    assert f["sizeof_ctrlbus_base_t"] > 0 and f["sizeof_ctrlbus_decoder_t"] > 0
+    text = f["cortex_m0plus_base_stack_text"]
+    assert text > 0
+    # The per-object breakdown from the linker map accounts for every byte size(1) counts.
+    by_object = result["details"]["base_stack_by_object"]["cortex-m0plus"]
+    assert sum(sizes["text"] for sizes in by_object.values()) == text
+    assert {"base.c", "frame.c"} <= set(by_object)
+    assert "scripts/size.sh" in "\n".join(result["tool_commands"])
+
+
+def test_end_to_end_figures(smoke: tuple[Path, dict[str, dict[str, Any]]]) -> None:
+    result = smoke[1]["end_to_end"]
+    assert result["status"] in RAN
+    f = result["figures"]
+    bases = ["python_base"] + (["c_base"] if result["status"] == "measured" else [])
+    for base in bases:
+        assert f[f"{base}_back_to_back_exchanges_per_s"] > 0
+        assert 0 < f[f"{base}_back_to_back_round_trip_p50_ms"] <= f[f"{base}_back_to_back_round_trip_p99_ms"]
+        assert f[f"{base}_core_exchanges_per_s"] > 0
+        assert result["details"][base]["core_emulator"]["exchanges"] > 0
+
+
+def test_link_efficiency_figures(smoke: tuple[Path, dict[str, dict[str, Any]]]) -> None:
+    result = smoke[1]["link_efficiency"]
+    assert result["status"] in RAN
+    f = result["figures"]
+    bases = ["python_base"] + (["c_base"] if result["status"] == "measured" else [])
+    for base in bases:
+        for master in ("core", "loop"):
+            run = result["details"][base][master]
+            assert run["request_bytes"] == 17 and run["answer_bytes"] in (18, 22)
+            maximum = 115200 / 10 / (run["request_bytes"] + run["answer_bytes"])
+            assert run["theoretical_max_per_s"] == pytest.approx(maximum, abs=0.01)
+            assert f[f"{base}_{master}_efficiency_pct"] > 0
+            assert run["base_reply_latency_mean_ms"] > 0 and run["master_turnaround_mean_ms"] > 0
+    # Virtual time is deterministic: with an instant base the line never idles, and a slower
+    # base only costs efficiency.
+    sweep = result["details"]["virtual_time"]["sweep"]
+    assert sweep[0]["base_reply_latency_ms"] == 0
+    assert sweep[0]["efficiency_pct"] == pytest.approx(100.0, abs=0.5)
+    efficiencies = [point["efficiency_pct"] for point in sweep]
+    assert efficiencies == sorted(efficiencies, reverse=True) and efficiencies[-1] < efficiencies[0]
+
+
+def test_plots_of_the_base_and_link_benchmarks(smoke: tuple[Path, dict[str, dict[str, Any]]]) -> None:
+    out, results = smoke
+    plots = {
+        "base_exchange": "bench-base-exchange.png",
+        "footprint": "bench-footprint.png",
+        "end_to_end": "bench-end-to-end.png",
+        "link_efficiency": "bench-link-efficiency.png",
+    }
+    for name, png in plots.items():
+        if results[name]["status"] in RAN:
+            assert (out / "img" / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
+
+
+def _bench_module(name: str) -> Any:
+    """A module of bench/ (they import each other by their bare names, so bench/ goes on the path
+    while it loads)."""
+    bench = str(REPO / "bench")
+    sys.path.insert(0, bench)
+    try:
+        return importlib.import_module(name)
+    finally:
+        sys.path.remove(bench)
+
+
+class _FakeClock:
+    """Time that moves only when read (a microsecond per reading, as code takes time) or when a
+    read of the scripted link waits."""
+
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def __call__(self) -> float:
+        self.now += 1e-6
+        return self.now
+
+
+class _ScriptedBase:
+    """A link whose far end answers every request `latency_s` after it was written; reading
+    advances the fake clock as a blocking read would."""
+
+    def __init__(self, clock: _FakeClock, answer: bytes, latency_s: float) -> None:
+        self.clock = clock
+        self.answer = answer
+        self.latency_s = latency_s
+        self.due: float | None = None
+        self.written: list[tuple[float, bytes]] = []
+
+    @property
+    def name(self) -> str:
+        return "scripted"
+
+    def write(self, data: bytes) -> None:
+        self.written.append((self.clock.now, data))
+        self.due = self.clock.now + self.latency_s
+
+    def read(self, timeout: float) -> bytes:
+        if self.due is not None and self.due <= self.clock.now + timeout:
+            self.clock.now = max(self.clock.now, self.due)
+            self.due = None
+            return self.answer
+        self.clock.now += timeout
+        return b""
+
+    def close(self) -> None:
+        pass
+
+
+def test_paced_link_delivers_at_the_line_rate() -> None:
+    endtoend = _bench_module("endtoend")
+    from ctrlbus.messages import SetVAndGetDeadreckon, SetVAndGetDeadreckonAnswer, answer_frame, request_frame
+
+    request = request_frame(SetVAndGetDeadreckon.from_si(0.1, 0.0, 0.2))
+    answer = answer_frame(SetVAndGetDeadreckonAnswer(1, 2, 3), long=True)
+    byte_time = 10 / 115200
+    clock = _FakeClock()
+    base = _ScriptedBase(clock, answer, latency_s=0.0005)
+    link = endtoend.PacedLink(base, byte_time, clock=clock)
+    link.write(request)
+    # The request reaches the base once its last byte has crossed the line, not before.
+    ((handed_at, data),) = base.written
+    assert data == request and handed_at == pytest.approx(len(request) * byte_time, abs=2e-5)
+    got = b""
+    while len(got) < len(answer):
+        got += link.read(0.01)
+    assert got == answer
+    # The answer left the base 0.5 ms after the request and took its own line time to arrive.
+    assert clock.now == pytest.approx(handed_at + 0.0005 + len(answer) * byte_time, abs=2e-5)
+    assert link.reply_latencies[0][1] == pytest.approx(0.0005, abs=2e-5)
+    assert [size for _, size in link.requests] == [len(request)]
+    assert [size for _, size in link.answers] == [len(answer)]
+    link.write(request)
+    assert link.turnarounds[0][1] == pytest.approx(0.0, abs=2e-5)
