@@ -740,6 +740,53 @@ OUT_OF_LINE static size_t feed_bulk(ctrlbus_decoder_t *d, const uint8_t *data, s
 }
 #endif
 
+#if CTRLBUS_DECODER_FAST
+/* A feed of one byte (a UART interrupt's), in the cases that need none of take_bulk()'s rarer
+ * steps: it starts a candidate in an empty buffer, extends one (its header not yet complete, or
+ * complete with an acceptable size), or completes one as a frame with a command. Returns false,
+ * having changed nothing, when the byte needs the general path: garbage, a timeout to apply, a full
+ * buffer, an oversize length, a failed or empty candidate. For a decoder with no result pending and
+ * no rescan due. */
+IN_LINE static bool take_one(ctrlbus_decoder_t *d, uint8_t byte, uint32_t now_ms)
+{
+    uint32_t have = d->end - d->start;
+    if (have == 0) {
+        if ((byte | 0x40u) != CTRLBUS_FLAG_LONG) {
+            return false;
+        }
+    } else {
+        if (d->end == d->max_frame || timed_out(d, now_ms)) {
+            return false;
+        }
+        const uint8_t *cand = d->buffer + d->start;
+        uint32_t header = header_size(cand[0]);
+        if (have + 1u >= header) {
+            uint32_t len_field = have + 1u == header
+                                     ? (header == 2u ? byte : cand[1] | (uint32_t)byte << 8)
+                                     : length_field(cand, header);
+            uint32_t size = header + len_field + 1u;
+            if (size > d->max_frame) {
+                return false;
+            }
+            if (have + 1u == size) {
+                if ((d->checksum ^ byte) != 0 || len_field == 0) {
+                    return false;
+                }
+                d->buffer[d->end++] = byte;
+                d->checksum = 0;
+                d->last_byte_ms = now_ms;
+                hold(d, yield_frame(d));
+                return true;
+            }
+        }
+    }
+    d->buffer[d->end++] = byte;
+    d->checksum ^= byte;
+    d->last_byte_ms = now_ms;
+    return true;
+}
+#endif
+
 size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, size_t len,
                             uint32_t now_ms)
 {
@@ -771,6 +818,9 @@ size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, siz
                 hold(d, yield_frame(d));
                 return size;
             }
+        }
+        if (len == 1u && take_one(d, data[0], now_ms)) {
+            return 1;
         }
         return feed_bulk(d, data, len, now_ms);
     }

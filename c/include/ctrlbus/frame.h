@@ -246,14 +246,16 @@ void ctrlbus_decoder_reset(ctrlbus_decoder_t *decoder);
  * Speed: frame.c has a bulk path (compile-time option CTRLBUS_DECODER_FAST, 0 or 1; by default 1,
  * and 0 when compiling with -Os, as MCU firmware is). With it, a feed takes the bytes of a frame
  * whose length is known in one step: it skips garbage up to the next flag in a tight loop, copies
- * the frame into the buffer and computes its checksum a machine word at a time, and only a header
- * split between feeds, an oversize length, a failure and the rescan after it go byte by byte. The
+ * the frame into the buffer and computes its checksum a machine word at a time; a feed of one byte
+ * that starts, extends or completes a frame is settled in a few comparisons. Only a header split
+ * between feeds, an oversize length, a failure and the rescan after it go byte by byte. The
  * results are the same either way (the fuzz target c/fuzz/fuzz_decoder.c compares the two).
- * Measured with callgrind on x86-64 (bench/c/ctrlbus_parse.c, gcc -O2, a Core<->base session):
- * fed in 64-byte chunks, about 14 instructions per byte with the caller's feed/next loop above,
- * against about 78 without the bulk path; fed one byte per call, about 155 against 160, mostly
- * the two calls per byte. It adds about 880 bytes of code on a Cortex-M0+ compiled with -Os
- * (2.8 KB in an x86-64 -O2 build), which is why size-optimised builds leave it out by default. */
+ * Measured with callgrind on x86-64 (bench/c/ctrlbus_parse.c, gcc -O2, SET_V_AND_GET_DEADRECKON
+ * requests and answers back to back), counting the caller's feed/next loop and not the walk over
+ * the input: fed in 64-byte chunks, about 9 instructions per byte against about 70 without the
+ * bulk path; fed one byte per call, about 103 against 158, half of it the two calls per byte. It
+ * adds about 1.1 KB of code on a Cortex-M0+ compiled with -Os (3.3 KB in an x86-64 -O2 build), which
+ * is why size-optimised builds leave it out by default. */
 size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, size_t len,
                             uint32_t now_ms);
 
