@@ -25,6 +25,7 @@ from pathlib import Path
 import pytest
 from base_harness import REPO, FramePeer, Process, connect_tcp
 
+from ctrlbus import binconf
 from ctrlbus.frame import Frame, encode
 
 DEFAULT_BINARY = REPO / "build" / "c" / "examples" / "posix_base" / "posix_base"
@@ -132,6 +133,12 @@ def test_help_describes_both_links_and_exits_0(binary: Path) -> None:
         (["--listen", "127.0.0.1"], "--listen wants HOST:PORT"),
         (["--pty", "--profile", "fancy"], "--profile wants reference or sdk2020"),
         (["--pty", "--watchdog-ms", "-5"], "--watchdog-ms"),
+        (["--pty", "--frame-timeout-ms", "60001"], "--frame-timeout-ms wants 0 to 60000"),
+        (
+            ["--pty", "--binary-config", "/nonexistent/blob.bin"],
+            "cannot read --binary-config /nonexistent/blob.bin",
+        ),
+        (["--pty", "--binary-config", "/dev/null"], "is empty"),
         (["--pty", "--frobnicate"], "unknown argument: --frobnicate"),
     ],
 )
@@ -192,6 +199,34 @@ def test_connect_and_configuration(base: FramePeer) -> None:
     assert conf[135] == 2  # bumper_num
     bumpers = [struct.unpack_from("<iiiI", conf, 136 + 16 * i) for i in range(2)]
     assert [angle // 256 for _, _, _, angle in bumpers] == [45, 315]
+
+
+def test_binary_configuration_is_served_only_when_given(start_tcp_base: StartBase, tmp_path: Path) -> None:
+    without = start_tcp_base().peer
+    refused = without.request(CMD_CTRL_BUS, bytes((0x21,)))
+    assert (refused.cmd, refused.payload) == (CMD_ERROR, struct.pack("<H", 0x8000))
+    blob = binconf.example_blob()  # what `ctrlbus config encode` writes for the example
+    path = tmp_path / "base.bin"
+    path.write_bytes(blob)
+    served = start_tcp_base("--binary-config", str(path)).peer.request(CMD_CTRL_BUS, bytes((0x21,)))
+    assert served.long and ok_payload(served) == blob
+    assert binconf.decode(served.payload) == binconf.decode(blob)
+
+
+def test_frame_timeout_option(start_tcp_base: StartBase) -> None:
+    # A false header claiming 32 bytes, then silence, then a real request.
+    false_header = bytes.fromhex("10 20")
+    quick = start_tcp_base("--frame-timeout-ms", "20").peer
+    quick.send(false_header)
+    time.sleep(0.1)  # five times the timeout: the partial frame is dropped
+    assert len(ok_payload(quick.request(CMD_CTRL_BUS, CONNECT_BASE_V1))) == 28
+    # With the timeout off, the request's bytes go into the waiting candidate: no answer yet.
+    patient = start_tcp_base("--frame-timeout-ms", "0").peer
+    patient.send(false_header)
+    time.sleep(0.1)
+    patient.send(encode(CMD_CTRL_BUS, CONNECT_BASE_V1))
+    with pytest.raises(AssertionError, match="no frame within"):
+        patient.read_frame(limit_s=0.3)
 
 
 def test_telemetry_of_the_robot_at_its_start(start_tcp_base: StartBase) -> None:

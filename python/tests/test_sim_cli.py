@@ -21,8 +21,10 @@ import pytest
 from base_harness import FramePeer, Process, connect_tcp
 
 from ctrlbus import binconf
-from ctrlbus.cli import main
+from ctrlbus.base import DEFAULT_FRAME_TIMEOUT_S
+from ctrlbus.cli import build_parser, main, sim_cmd
 from ctrlbus.frame import encode
+from ctrlbus.sim.server import build_simulated_stack
 
 CTRL_BUS, OK = 0xF8, 0x02
 SIM = [sys.executable, "-m", "ctrlbus", "sim"]
@@ -118,6 +120,9 @@ def test_listen_with_options_and_sigterm_exits_0(processes: list[Process], tmp_p
         (["--pty", "--seed", "-3"], "--seed wants an integer >= 0"),
         (["--pty", "--seed", "x"], "--seed wants an integer"),
         (["--pty", "--watchdog-ms", "-5"], "--watchdog-ms"),
+        (["--pty", "--frame-timeout-ms", "-1"], "--frame-timeout-ms wants a number of milliseconds from 0"),
+        (["--pty", "--frame-timeout-ms", "nan"], "--frame-timeout-ms wants a number of milliseconds from 0"),
+        (["--pty", "--frame-timeout-ms", "soon"], "--frame-timeout-ms wants a number"),
         (["--pty", "--config", "/nonexistent/robot.json"], "cannot read /nonexistent/robot.json"),
         (["--pty", "--room", "/nonexistent/room.json"], "cannot read /nonexistent/room.json"),
         (["--pty", "--binary-config", "/nonexistent/conf.json"], "cannot read /nonexistent/conf.json"),
@@ -164,3 +169,14 @@ def test_a_link_must_be_chosen() -> None:
     with pytest.raises(SystemExit) as exit_info:
         main(["sim"])
     assert exit_info.value.code == 2
+
+
+def test_frame_timeout_option_reaches_the_base_stack() -> None:
+    parser = build_parser()
+    settings = sim_cmd.settings_from_args(parser.parse_args(["sim", "--pty", "--frame-timeout-ms", "20"]))
+    _, stack = build_simulated_stack(settings)
+    assert stack.config.frame_timeout_s == pytest.approx(0.02)
+    default = sim_cmd.settings_from_args(parser.parse_args(["sim", "--pty"]))
+    assert build_simulated_stack(default)[1].config.frame_timeout_s == DEFAULT_FRAME_TIMEOUT_S
+    off = sim_cmd.settings_from_args(parser.parse_args(["sim", "--pty", "--frame-timeout-ms", "0"]))
+    assert build_simulated_stack(off)[1].config.frame_timeout_s == 0

@@ -18,9 +18,6 @@
 /* The longest the loop sleeps: bounds how late the watchdog and the simulation run. */
 #define LOOP_PERIOD_MS 5
 #define POSIX_HARDWARE_VERSION 1u /* the QEMU firmware says 2 */
-/* A host reads its link in bursts (scheduling, USB-serial latency timers): the inter-byte timeout
- * of a host program (docs/protocol.md §7.6), not an MCU's 10 ms. */
-#define POSIX_FRAME_TIMEOUT_MS 100u
 
 static volatile sig_atomic_t stop_requested;
 
@@ -93,6 +90,34 @@ static int fail(const char *message)
     return 2;
 }
 
+/* The largest blob the stack serves (ctrlbus_base_config_t.binary_config_size). */
+#define BINARY_CONFIG_MAX 65534u
+
+/* Reads the --binary-config file into blob[BINARY_CONFIG_MAX]. Returns its size, or -1 with a
+ * one-line reason in error. */
+static long read_binary_config(const char *path, uint8_t *blob, char *error, size_t error_size)
+{
+    FILE *file = fopen(path, "rb");
+    if (file == NULL) {
+        (void)snprintf(error, error_size, "cannot read --binary-config %s: %s", path, strerror(errno));
+        return -1;
+    }
+    size_t size = fread(blob, 1, BINARY_CONFIG_MAX, file);
+    int failed = ferror(file);
+    int extra = fgetc(file) != EOF;
+    (void)fclose(file);
+    if (failed) {
+        (void)snprintf(error, error_size, "cannot read --binary-config %s", path);
+        return -1;
+    }
+    if (extra || size == 0) {
+        (void)snprintf(error, error_size, "--binary-config %s: a blob holds 1 to %u bytes, this file %s", path,
+                       BINARY_CONFIG_MAX, size == 0 ? "is empty" : "is larger");
+        return -1;
+    }
+    return (long)size;
+}
+
 int main(int argc, char **argv)
 {
     posix_base_options_t options;
@@ -109,6 +134,13 @@ int main(int argc, char **argv)
         return fail("cannot install signal handlers");
     }
 
+    static uint8_t binary_config[BINARY_CONFIG_MAX];
+    long binary_config_size = 0;
+    if (options.binary_config_path != NULL &&
+        (binary_config_size = read_binary_config(options.binary_config_path, binary_config, error, sizeof error)) < 0) {
+        return fail(error);
+    }
+
     static output_t output;
     int opened = options.use_pty
                      ? posix_link_open_pty(&output.link, error, sizeof error)
@@ -122,10 +154,15 @@ int main(int argc, char **argv)
     memset(&glue_options, 0, sizeof glue_options);
     glue_options.watchdog_ms = options.watchdog_ms;
     glue_options.watchdog_off = options.watchdog_ms == 0;
-    glue_options.frame_timeout_ms = POSIX_FRAME_TIMEOUT_MS;
+    glue_options.frame_timeout_ms = options.frame_timeout_ms == 0 ? CTRLBUS_BASE_TIMEOUT_OFF
+                                                                  : (uint16_t)options.frame_timeout_ms;
     glue_options.hardware_version = POSIX_HARDWARE_VERSION;
     glue_options.time_scale_percent = options.time_scale_percent;
     glue_options.sdk2020_sizes = options.profile == PROFILE_SDK2020;
+    if (binary_config_size > 0) {
+        glue_options.binary_config = binary_config;
+        glue_options.binary_config_size = (uint16_t)binary_config_size;
+    }
     glue_options.sim.battery_start_percent = options.battery_percent;
     glue_options.write = write_to_link;
     glue_options.write_context = &output;

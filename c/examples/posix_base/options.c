@@ -24,6 +24,11 @@ static const char usage_text[] =
     "                         deadreckon 17); default reference\n"
     "  --watchdog-ms MS       stop the wheels when no CTRL_BUS request came for MS ms; 0 turns the\n"
     "                         motor watchdog off; default 1000\n"
+    "  --frame-timeout-ms MS  drop a partial frame after MS ms without a byte (0 to 60000; 0 turns\n"
+    "                         it off); default 100, for a host behind a USB-serial adapter\n"
+    "  --binary-config FILE   serve the bytes of FILE (a blob from `ctrlbus config encode`, at most\n"
+    "                         65534 bytes) for GET_BASE_CONF_ADV (0x21); without it 0x21 is\n"
+    "                         answered ERROR 0x8000 and the Core falls back to GET_BASE_CONF\n"
     "  --time-scale FACTOR    simulated time per real time (0.01 to 1000); default 1\n"
     "  --battery PERCENT      battery charge at start (1 to 100); default 80\n"
     "  --verbose              log connections on stderr\n"
@@ -101,6 +106,7 @@ int posix_base_parse_options(int argc, char **argv, posix_base_options_t *option
     posix_base_options_t defaults = {0};
     defaults.profile = PROFILE_REFERENCE;
     defaults.watchdog_ms = POSIX_BASE_DEFAULT_WATCHDOG_MS;
+    defaults.frame_timeout_ms = POSIX_BASE_DEFAULT_FRAME_TIMEOUT_MS;
     defaults.time_scale_percent = 100;
     defaults.battery_percent = 80;
     *options = defaults;
@@ -110,6 +116,7 @@ int posix_base_parse_options(int argc, char **argv, posix_base_options_t *option
         const char *arg = argv[i];
         int takes_value = strcmp(arg, "--listen") == 0 || strcmp(arg, "--profile") == 0 ||
                           strcmp(arg, "--watchdog-ms") == 0 || strcmp(arg, "--time-scale") == 0 ||
+                          strcmp(arg, "--frame-timeout-ms") == 0 || strcmp(arg, "--binary-config") == 0 ||
                           strcmp(arg, "--battery") == 0;
         const char *value = NULL;
         if (takes_value) {
@@ -143,6 +150,13 @@ int posix_base_parse_options(int argc, char **argv, posix_base_options_t *option
                 return fail(error, error_size, "--watchdog-ms wants 0 to 3600000, got", value);
             }
             options->watchdog_ms = (uint32_t)number;
+        } else if (strcmp(arg, "--frame-timeout-ms") == 0) {
+            if (parse_unsigned(value, 0, POSIX_BASE_MAX_FRAME_TIMEOUT_MS, &number) != 0) {
+                return fail(error, error_size, "--frame-timeout-ms wants 0 to 60000, got", value);
+            }
+            options->frame_timeout_ms = (uint32_t)number;
+        } else if (strcmp(arg, "--binary-config") == 0) {
+            options->binary_config_path = value;
         } else if (strcmp(arg, "--time-scale") == 0) {
             if (parse_time_scale(value, &options->time_scale_percent) != 0) {
                 return fail(error, error_size, "--time-scale wants a factor from 0.01 to 1000, got", value);

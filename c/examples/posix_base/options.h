@@ -17,12 +17,18 @@ typedef struct {
     uint16_t listen_port; /* 0: let the system pick one (the chosen port is printed) */
     posix_base_profile_t profile;
     uint32_t watchdog_ms;        /* 0: motor watchdog off */
+    uint32_t frame_timeout_ms;   /* inter-byte timeout; 0: off */
     uint32_t time_scale_percent; /* simulated time per real time; 100 = real time */
     int32_t battery_percent;     /* battery at start, 1..100 */
+    const char *binary_config_path; /* NULL unless --binary-config: the blob served for 0x21 */
     int verbose;
 } posix_base_options_t;
 
 #define POSIX_BASE_DEFAULT_WATCHDOG_MS 1000u
+/* A host reads its link in bursts (scheduling, USB-serial latency timers): the inter-byte timeout
+ * of a host program (docs/protocol.md §7.6), not an MCU's 10 ms. */
+#define POSIX_BASE_DEFAULT_FRAME_TIMEOUT_MS 100u
+#define POSIX_BASE_MAX_FRAME_TIMEOUT_MS 60000u
 
 /* Parse argv into *options (defaults first). Returns 0 on success; on a bad command line returns
  * -1 with a one-line description in error[error_size] (no trailing newline). */

@@ -195,14 +195,15 @@ static void test_options(void)
     CHECK(parse_args(&options, error, sizeof error, pty) == 0);
     CHECK(options.use_pty && options.listen_host[0] == '\0');
     CHECK(options.profile == PROFILE_REFERENCE && options.watchdog_ms == 1000 && options.time_scale_percent == 100);
-    CHECK(options.battery_percent == 80);
+    CHECK(options.battery_percent == 80 && options.frame_timeout_ms == 100);
 
     const char *const full[] = {"--listen",      "127.0.0.1:5555", "--profile", "sdk2020", "--watchdog-ms", "0",
-                                "--time-scale", "2.5",            "--battery", "15",      "--verbose",     NULL};
+                                "--time-scale", "2.5",            "--battery", "15",      "--verbose",
+                                "--frame-timeout-ms", "20", NULL};
     CHECK(parse_args(&options, error, sizeof error, full) == 0);
     CHECK(!options.use_pty && strcmp(options.listen_host, "127.0.0.1") == 0 && options.listen_port == 5555);
     CHECK(options.profile == PROFILE_SDK2020 && options.watchdog_ms == 0 && options.time_scale_percent == 250);
-    CHECK(options.battery_percent == 15 && options.verbose);
+    CHECK(options.battery_percent == 15 && options.verbose && options.frame_timeout_ms == 20);
 
     const char *const ipv6[] = {"--listen", "[::1]:0", NULL};
     CHECK(parse_args(&options, error, sizeof error, ipv6) == 0);
@@ -225,6 +226,7 @@ static void test_options(void)
         {{"--listen", "h:-1", NULL}, "h:-1"},
         {{"--pty", "--profile", "fancy", NULL}, "--profile wants reference or sdk2020, got: fancy"},
         {{"--pty", "--watchdog-ms", "1e3", NULL}, "--watchdog-ms"},
+        {{"--pty", "--frame-timeout-ms", "60001", NULL}, "--frame-timeout-ms wants 0 to 60000"},
         {{"--pty", "--time-scale", "0", NULL}, "--time-scale"},
         {{"--pty", "--time-scale", "nan", NULL}, "--time-scale"},
         {{"--pty", "--battery", "0", NULL}, "--battery"},

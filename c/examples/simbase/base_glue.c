@@ -145,6 +145,8 @@ int32_t base_glue_init(base_glue_t *glue, const base_glue_options_t *options, ui
     config->health_capacity = BASE_GLUE_HEALTH_ENTRIES;
     config->profile = options->sdk2020_sizes ? CTRLBUS_PROFILE_SDK2020 : CTRLBUS_PROFILE_REFERENCE;
     config->frame_timeout_ms = options->frame_timeout_ms;
+    config->binary_config = options->binary_config;
+    config->binary_config_size = options->binary_config_size;
     config->watchdog_ms = options->watchdog_off ? CTRLBUS_BASE_WATCHDOG_OFF : options->watchdog_ms;
     config->write = options->write;
     config->write_context = options->write_context;

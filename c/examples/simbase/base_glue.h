@@ -38,6 +38,8 @@ typedef struct {
     bool watchdog_off;            /* no motor watchdog at all */
     uint32_t time_scale_percent;  /* simulated time per real time; 0 means 100 (real time) */
     bool sdk2020_sizes;           /* CONNECT 39 and deadreckon 17 bytes instead of 28 and 13 */
+    const uint8_t *binary_config; /* GET_BASE_CONF_ADV blob (caller-owned); NULL: ERROR 0x8000 */
+    uint16_t binary_config_size;
     uint16_t hardware_version;    /* CONNECT_BASE hardware_version: tells the hosts apart */
     simbase_config_t sim;         /* zero fields: simbase defaults */
     ctrlbus_write_fn write;       /* where answers go (required) */

@@ -2,7 +2,7 @@
 
     ctrlbus sim --pty | --listen HOST:PORT | --port URL [--config FILE] [--room FILE]
                 [--binary-config FILE] [--profile reference|sdk2020] [--time-scale X] [--seed N]
-                [--watchdog-ms N] [--reference-checksum]
+                [--watchdog-ms N] [--frame-timeout-ms N] [--reference-checksum]
 
 Prints where it serves on stdout as one line (`pty: /dev/pts/N`, `listen: HOST:PORT` or
 `port: URL`), then answers the Core until Ctrl-C or SIGTERM (exit 0).
@@ -15,10 +15,12 @@ import sys
 import threading
 from typing import Any
 
-from ctrlbus.base import DEFAULT_WATCHDOG_S, serve
+from ctrlbus.base import DEFAULT_FRAME_TIMEOUT_S, DEFAULT_WATCHDOG_S, serve
 from ctrlbus.cli.common import add_serve_arguments, stop_on_signals
 from ctrlbus.errors import UsageError
 from ctrlbus.sim.server import MAX_TIME_SCALE, SimServer, SimSettings
+
+MAX_FRAME_TIMEOUT_MS = 60_000  # as posix_base's --frame-timeout-ms
 
 DESCRIPTION = """\
 Serve the simulated base on a link: a differential-drive robot in a 2-D room with distance
@@ -67,6 +69,13 @@ def register(subparsers: Any) -> None:
         f"{DEFAULT_WATCHDOG_S * 1000:g}; 0 switches it off)",
     )
     parser.add_argument(
+        "--frame-timeout-ms",
+        default=f"{DEFAULT_FRAME_TIMEOUT_S * 1000:g}",
+        metavar="N",
+        help=f"drop a partial frame after N ms without a byte (default {DEFAULT_FRAME_TIMEOUT_S * 1000:g}, "
+        "for a host behind a USB-serial adapter; 0 switches it off)",
+    )
+    parser.add_argument(
         "--reference-checksum",
         action="store_true",
         help="answer checksum errors with 0x00C0 as the reference firmware does (default 0x0040)",
@@ -94,6 +103,12 @@ def settings_from_args(args: argparse.Namespace) -> SimSettings:
     watchdog_ms = _number("--watchdog-ms", args.watchdog_ms)
     if not watchdog_ms >= 0 or watchdog_ms == float("inf"):
         raise UsageError(f"--watchdog-ms wants a number of milliseconds >= 0, got {args.watchdog_ms!r}")
+    frame_timeout_ms = _number("--frame-timeout-ms", args.frame_timeout_ms)
+    if not 0 <= frame_timeout_ms <= MAX_FRAME_TIMEOUT_MS:
+        raise UsageError(
+            f"--frame-timeout-ms wants a number of milliseconds from 0 to {MAX_FRAME_TIMEOUT_MS}, "
+            f"got {args.frame_timeout_ms!r}"
+        )
     seed = None if args.seed is None else _integer("--seed", args.seed)
     if seed is not None and seed < 0:
         raise UsageError(f"--seed wants an integer >= 0, got {args.seed!r}")
@@ -105,6 +120,7 @@ def settings_from_args(args: argparse.Namespace) -> SimSettings:
         time_scale=_number("--time-scale", args.time_scale),
         seed=seed,
         watchdog_s=watchdog_ms / 1000.0 if watchdog_ms > 0 else None,
+        frame_timeout_s=frame_timeout_ms / 1000.0,
         reference_checksum_code=args.reference_checksum,
     )
 

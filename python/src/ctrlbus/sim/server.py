@@ -19,7 +19,15 @@ from types import TracebackType
 from typing import Self
 
 from ctrlbus import binconf
-from ctrlbus.base import DEFAULT_WATCHDOG_S, BaseConfig, BaseRunner, BaseStack, Profile, parse_profile
+from ctrlbus.base import (
+    DEFAULT_FRAME_TIMEOUT_S,
+    DEFAULT_WATCHDOG_S,
+    BaseConfig,
+    BaseRunner,
+    BaseStack,
+    Profile,
+    parse_profile,
+)
 from ctrlbus.errors import BinaryConfigError, UsageError
 from ctrlbus.link import DEFAULT_BAUD, Link, PtyLink, TcpServerLink, serve_link
 from ctrlbus.sim.base import SimulatedBase
@@ -43,6 +51,7 @@ class SimSettings:
     time_scale: float = 1.0
     seed: int | None = None
     watchdog_s: float | None = DEFAULT_WATCHDOG_S
+    frame_timeout_s: float = DEFAULT_FRAME_TIMEOUT_S  # inter-byte timeout; 0 switches it off
     reference_checksum_code: bool = False
 
 
@@ -69,6 +78,7 @@ def build_simulated_stack(settings: SimSettings) -> tuple[SimulatedBase, BaseSta
     config = BaseConfig(
         profile=parse_profile(settings.profile),
         watchdog_s=settings.watchdog_s,
+        frame_timeout_s=settings.frame_timeout_s,
         reference_checksum_code=settings.reference_checksum_code,
     )
     blob = None if settings.binary_config is None else read_binary_config(settings.binary_config)
