@@ -492,3 +492,20 @@ def test_from_fields_builds_requests_and_answers() -> None:
 def test_from_fields_rejects_bad_json(name: str, values: dict[str, Any], to: str | None) -> None:
     with pytest.raises(MessageFormatError):
         m.from_fields(name, values, to=to)
+
+
+def test_encode_and_decode_take_either_kind() -> None:
+    request = m.SetVAndGetDeadreckon.from_si(0.2, 0.0, 0.5)
+    cmd, payload = m.encode(request)
+    assert (cmd, payload) == m.encode_request(request)
+    assert m.decode(cmd, payload) == request
+    answer = m.SetVAndGetDeadreckonAnswer(1, 2, 3)
+    cmd, payload = m.encode(answer)
+    assert (cmd, payload) == m.encode_answer(answer)
+    assert m.decode(cmd, payload, answer_to=request) == answer
+    assert m.decode(cmd, payload, answer_to="SET_V_AND_GET_DEADRECKON") == answer
+    # An OK payload alone is not a request; an unknown kind is refused.
+    with pytest.raises(UnsupportedMessageError):
+        m.decode(cmd, payload)
+    with pytest.raises(UnsupportedMessageError):
+        m.encode(m.Message())

@@ -5,6 +5,8 @@ as the raw integers of the wire; fixed-point fields (``_q8`` / ``_q16``) also ha
 properties without the suffix and ``from_si`` constructors. Messages check their values when they
 are built, so an out-of-range value raises MessageFormatError before anything is encoded.
 
+- `encode(msg) -> (cmd, payload)` / `decode(cmd, payload, answer_to=None)`: either kind, by the
+  message's type or by whether `answer_to` names the request being answered; the same as
 - `encode_request(msg) -> (cmd, payload)` / `decode_request(cmd, payload)`
 - `encode_answer(msg) -> (cmd, payload)` / `decode_answer(request, cmd, payload)`: an OK payload
   can only be read knowing the request it answers.
@@ -1219,6 +1221,23 @@ def decode_answer(request: str | RequestMessage, cmd: int, payload: bytes) -> An
     if answer_cls is None:
         raise UnsupportedMessageError(f"unknown response 0x{cmd:02X}")
     return answer_cls._unpack(payload)
+
+
+def encode(msg: Message) -> tuple[int, bytes]:
+    """(CMD byte, payload) of any message: `encode_request` or `encode_answer` by its kind."""
+    if isinstance(msg, RequestMessage):
+        return encode_request(msg)
+    if isinstance(msg, AnswerMessage):
+        return encode_answer(msg)
+    raise UnsupportedMessageError(f"not a request or an answer: {type(msg).__name__}")
+
+
+def decode(cmd: int, payload: bytes, *, answer_to: str | RequestMessage | None = None) -> Message:
+    """The message in a frame's (CMD, payload): a request, or with `answer_to` (the request's name
+    or the request) the answer to that request (`decode_request` / `decode_answer`)."""
+    if answer_to is None:
+        return decode_request(cmd, payload)
+    return decode_answer(answer_to, cmd, payload)
 
 
 def request_frame(msg: RequestMessage, *, long: bool | None = None) -> bytes:
