@@ -7,17 +7,21 @@ Playwright; nothing is downloaded. Screenshots are saved in python/test-artifact
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import json
 import math
 import os
+import pty
 import queue
 import re
+import select
 import shutil
 import signal
 import socket
 import subprocess
 import sys
 import tempfile
+import termios
 import threading
 import time
 import urllib.request
@@ -331,3 +335,67 @@ def test_the_demo_stops_cleanly_on_sigint(base: str) -> None:
         stop_demo_forcibly(running.process)
         raise
     interrupt_and_check_clean_exit(running)
+
+
+def read_terminal(master: int, until: re.Pattern[str] | None, limit_s: float) -> str:
+    """What a terminal shows, until `until` matches it, the program closes it, or limit_s."""
+    shown = b""
+    deadline = time.monotonic() + limit_s
+    while time.monotonic() < deadline:
+        if until is not None and until.search(shown.decode(errors="replace")):
+            break
+        ready, _, _ = select.select([master], [], [], 0.2)
+        if not ready:
+            continue
+        try:
+            chunk = os.read(master, 4096)
+        except OSError:  # EIO: every process holding the terminal has gone
+            break
+        if not chunk:
+            break
+        shown += chunk
+    return shown.decode(errors="replace")
+
+
+def test_make_demo_in_a_terminal_stops_on_ctrl_c() -> None:
+    """`make demo` as a user runs it: in a terminal, stopped by typing Ctrl-C, which the terminal
+    sends as SIGINT to the whole foreground process group (make and the demo together)."""
+    master, slave = pty.openpty()
+    process = subprocess.Popen(
+        ["make", "--no-print-directory", "demo", f"DEMO_ARGS=--http 127.0.0.1:{free_port()}"],
+        cwd=REPO_ROOT,
+        stdin=slave,
+        stdout=slave,
+        stderr=slave,
+        start_new_session=True,
+        preexec_fn=lambda: fcntl.ioctl(0, termios.TIOCSCTTY, 0),  # the pty is its terminal
+    )
+    os.close(slave)
+    try:
+        shown = read_terminal(master, URL_LINE, START_LIMIT_S * 2)  # make may build first
+        match = URL_LINE.search(shown)
+        assert match, f"make demo printed no dashboard URL:\n{shown}"
+        api = match.group(1).split("?")[0].rstrip("/") + "/api/snapshot"
+        deadline = time.monotonic() + 30
+        while True:
+            with urllib.request.urlopen(api, timeout=10) as response:
+                if json.load(response)["data"]["link"]["connection"]["state"] == "connected":
+                    break
+            assert time.monotonic() < deadline, "the Core never connected"
+            time.sleep(0.2)
+        os.write(master, b"\x03")  # Ctrl-C
+        try:
+            process.wait(STOP_LIMIT_S)
+        except subprocess.TimeoutExpired:
+            raise AssertionError(f"make demo did not stop within {STOP_LIMIT_S:g} s of Ctrl-C") from None
+        shown += read_terminal(master, None, 5)
+        assert "stopped" in shown, shown
+        leftovers = session_members(process.pid)
+        assert leftovers == [], f"processes left behind: {leftovers}\n{shown}"
+    finally:
+        for pid in session_members(process.pid):
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            process.wait(10)
+        os.close(master)
