@@ -374,3 +374,15 @@ def test_paced_link_delivers_at_the_line_rate() -> None:
     assert [size for _, size in link.answers] == [len(answer)]
     link.write(request)
     assert link.turnarounds[0][1] == pytest.approx(0.0, abs=2e-5)
+
+
+def test_soak_real_time_runs(smoke: tuple[Path, dict[str, dict[str, Any]]]) -> None:
+    result = smoke[1]["soak"]
+    assert result["status"] in RAN
+    bases = ["python_base"] + (["c_base"] if result["status"] == "measured" else [])
+    for base in bases:
+        run = result["details"][f"realtime_{base}"]
+        # It ran to its exchange count (300 in the smoke run) unless it hit its time limit.
+        assert run["exchanges"] == result["figures"][f"{base}_exchanges"] > 0
+        assert run["exchanges"] >= 300 or run["seconds"] >= 20.0
+        assert run["request_timeout_s"] < 0.2 and run["exchanges_per_s"] > 0
