@@ -53,8 +53,11 @@ size: setup
 bench: c-build
 	@$(PY) bench/run.py
 
+# Each libFuzzer target for FUZZ_SECONDS (default 900), then the library's coverage by the corpora;
+# records the run in bench/results/fuzz.json and docs/reliability.md.
+FUZZ_SECONDS ?= 900
 fuzz: setup
-	@scripts/fuzz.sh $(FUZZ_SECONDS)
+	@FUZZ_COVERAGE=1 FUZZ_RECORD=1 FUZZ_COMMAND="make fuzz FUZZ_SECONDS=$(FUZZ_SECONDS)" scripts/fuzz.sh $(FUZZ_SECONDS)
 
 # Each libFuzzer target for 30 s (part of `make test`).
 fuzz-smoke: setup

@@ -335,7 +335,7 @@ def replace_block(text: str, name: str, body: str) -> str:
     begin, end = _marker(name, "begin"), _marker(name, "end")
     pattern = re.compile(re.escape(begin) + r".*?" + re.escape(end), re.DOTALL)
     if not pattern.search(text):
-        raise BenchError(f"docs/performance.md has no {begin} ... {end} block")
+        raise BenchError(f"the page has no {begin} ... {end} block")
     return pattern.sub(lambda _: f"{begin}\n{body}\n{end}", text, count=1)
 
 

@@ -6,6 +6,9 @@
 #   FUZZ_TARGETS="decoder" scripts/fuzz.sh 600   some targets only
 #   FUZZ_COVERAGE=1 scripts/fuzz.sh [SECONDS]    then the line coverage of c/src by the corpora
 #                                                (SECONDS 0: the coverage only, no fuzzing)
+#   FUZZ_RECORD=1 scripts/fuzz.sh [SECONDS]      then record the run (bench/fuzz_report.py):
+#                                                bench/results/fuzz.json and the fuzzing table
+#                                                of docs/reliability.md (`make fuzz` does this)
 #
 # It configures and builds build/fuzz with clang (libFuzzer, AddressSanitizer, UndefinedBehavior-
 # Sanitizer; that build writes the seed corpora from vectors/*.json), then runs each target with
@@ -74,7 +77,8 @@ coverage_report() {
   llvm-profdata merge -o "$cov_build/merged.profdata" "$cov_build"/*.profraw
   echo
   echo "coverage of the library by the corpora and seeds of: $targets"
-  llvm-cov report "${objects[@]:1}" -instr-profile="$cov_build/merged.profdata" c/src/*.c
+  llvm-cov report "${objects[@]:1}" -instr-profile="$cov_build/merged.profdata" c/src/*.c |
+    tee "$build/logs/coverage.txt"
 }
 
 # All of it in one function, read whole before it runs: editing this file while a long run is
@@ -115,7 +119,15 @@ main() {
     done
   fi
   if [ "$coverage" = 1 ]; then
+    mkdir -p "$build/logs"
+    rm -f "$build/logs/coverage.txt"
     coverage_report "$build" "$cc" "$targets" || exit 2
+  fi
+  if [ "${FUZZ_RECORD:-0}" = 1 ]; then
+    local python=.venv/bin/python
+    [ -x "$python" ] || python=python3
+    (cd bench && "../$python" fuzz_report.py --build "../$build" \
+       --command "${FUZZ_COMMAND:-FUZZ_COVERAGE=$coverage FUZZ_RECORD=1 scripts/fuzz.sh $seconds}") || exit 2
   fi
   exit $failed
 }

@@ -386,3 +386,55 @@ def test_soak_real_time_runs(smoke: tuple[Path, dict[str, dict[str, Any]]]) -> N
         assert run["exchanges"] == result["figures"][f"{base}_exchanges"] > 0
         assert run["exchanges"] >= 300 or run["seconds"] >= 20.0
         assert run["request_timeout_s"] < 0.2 and run["exchanges_per_s"] > 0
+
+
+def _fake_fuzz_build(root: Path, *, crash_in: str | None = None) -> Path:
+    """A fuzz build directory as scripts/fuzz.sh leaves it: a log per target, corpora, coverage."""
+    logs = root / "logs"
+    logs.mkdir(parents=True)
+    for number, target in enumerate(("decoder", "base", "fixup"), start=1):
+        lines = [
+            "INFO: Loaded 1 modules   (600 inline 8-bit counters): 600 [0x1, 0x2),",
+            f"#1000\tNEW    cov: {100 * number} ft: {1000 * number} corp: 5/1Kb exec/s: 0 rss: 40Mb",
+        ]
+        if target == crash_in:
+            lines += ["==42==ERROR: AddressSanitizer: heap-buffer-overflow on address 0x1", "SUMMARY: ..."]
+        else:
+            lines.append(f"Done {10_000_000 + number} runs in 900 second(s)")
+        lines += [
+            f"stat::number_of_executed_units: {10_000_000 + number}",
+            "stat::average_exec_per_sec:     11111",
+        ]
+        (logs / f"{target}.log").write_text("\n".join(lines) + "\n")
+        corpus = root / "corpus" / target
+        corpus.mkdir(parents=True)
+        for i in range(number):
+            (corpus / str(i)).write_bytes(b"x")
+    header = (
+        "Filename Regions Missed Cover Functions Missed Executed Lines Missed Cover Branches Missed Cover"
+    )
+    (logs / "coverage.txt").write_text(
+        f"{header}\n/x/c/src/frame.c 400 20 95.00% 30 0 100.00% 700 10 98.57% 300 30 90.00%\n"
+        "TOTAL 1000 100 90.00% 90 1 98.89% 2000 50 97.50% 800 80 90.00%\n"
+    )
+    return root
+
+
+def test_fuzz_report_reads_the_logs_and_the_coverage(tmp_path: Path) -> None:
+    fuzz_report = _bench_module("fuzz_report")
+    result = fuzz_report.build_result(_fake_fuzz_build(tmp_path / "ok"), "make fuzz")
+    f = result["figures"]
+    assert [f[f"{t}_executions"] for t in ("decoder", "base", "fixup")] == [
+        10_000_001,
+        10_000_002,
+        10_000_003,
+    ]
+    assert (f["base_coverage_edges"], f["base_instrumented_edges"], f["base_findings"]) == (200, 600, 0)
+    assert f["library_line_coverage"] == "97.50%"
+    assert [row[-1] for row in result["table"][:3]] == ["yes"] * 3
+    assert result["details"]["coverage"]["frame.c"]["branches"] == "90.00%"
+    # A target that found something: its row fails, and the finding is named.
+    crashed = fuzz_report.build_result(_fake_fuzz_build(tmp_path / "crash", crash_in="base"), "make fuzz")
+    row = crashed["table"][1]
+    assert row[-1] == "**no**" and "heap-buffer-overflow" in row[2]
+    assert crashed["figures"]["base_findings"] == 2
