@@ -117,3 +117,16 @@ def git_revision() -> dict[str, Any]:
     commit = git("rev-parse", "HEAD")
     dirty = bool(git("status", "--porcelain", "--untracked-files=no"))
     return {"commit": commit or "unknown", "dirty": dirty}
+
+
+def stop_process(process: subprocess.Popen[bytes]) -> None:
+    """Stop a program the benchmark started: SIGTERM, then SIGKILL after 5 s."""
+    if process.poll() is None:
+        process.terminate()
+        try:
+            process.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait(timeout=5)
+    if process.stdout is not None:
+        process.stdout.close()

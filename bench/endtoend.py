@@ -58,6 +58,7 @@ from common import (
     BenchError,
     ensure_ctrlbus_importable,
     run_command,
+    stop_process,
 )
 from findings import PARTIAL, Findings
 
@@ -164,18 +165,6 @@ def bases_under_test(ctx: BenchContext) -> tuple[list[BaseUnderTest], list[str]]
     return bases, pending
 
 
-def _stop(process: subprocess.Popen[bytes]) -> None:
-    if process.poll() is None:
-        process.terminate()
-        try:
-            process.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait(timeout=5)
-    if process.stdout is not None:
-        process.stdout.close()
-
-
 @contextlib.contextmanager
 def served_base(ctx: BenchContext, base: BaseUnderTest, log_path: Path) -> Iterator[str]:
     """Start the base, wait for its `pty: PATH` line, yield PATH; stop the base afterwards."""
@@ -200,7 +189,7 @@ def served_base(ctx: BenchContext, base: BaseUnderTest, log_path: Path) -> Itera
             raise BenchError(f"{base.label} printed {first!r}, not 'pty: PATH'")
         yield first.removeprefix("pty: ")
     finally:
-        _stop(process)
+        stop_process(process)
 
 
 def load_row(before: float, after: float) -> list[str]:

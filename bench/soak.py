@@ -32,7 +32,17 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from common import FULL, MEASURED, PENDING, REPO, SMOKE, BenchContext, BenchError, ensure_ctrlbus_importable
+from common import (
+    FULL,
+    MEASURED,
+    PENDING,
+    REPO,
+    SMOKE,
+    BenchContext,
+    BenchError,
+    ensure_ctrlbus_importable,
+    stop_process,
+)
 from refmodel import ReferenceModelDecoder
 from session import split_frames
 
@@ -484,28 +494,16 @@ def _start_listening(command: list[str], log_path: Path) -> tuple[subprocess.Pop
         ready, _, _ = select.select([process.stdout], [], [], max(0.0, remaining))
         chunk = os.read(process.stdout.fileno(), 256) if ready else b""
         if not chunk:
-            _stop(process)
+            stop_process(process)
             raise BenchError(
                 f"{' '.join(command)} printed no listening address: {log_path.read_text()[-500:]}"
             )
         line += chunk
     match = LISTEN_LINE.fullmatch(line.split(b"\n", 1)[0].decode(errors="replace").strip())
     if match is None:
-        _stop(process)
+        stop_process(process)
         raise BenchError(f"{' '.join(command)} printed {line!r}, not 'listen: 127.0.0.1:PORT'")
     return process, int(match.group(1))
-
-
-def _stop(process: subprocess.Popen[bytes]) -> None:
-    if process.poll() is None:
-        process.terminate()
-        try:
-            process.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait(timeout=5)
-    if process.stdout is not None:
-        process.stdout.close()
 
 
 def run_realtime(
@@ -537,7 +535,7 @@ def run_realtime(
         elapsed = time.monotonic() - started
     finally:
         runner.stop()
-        _stop(process)
+        stop_process(process)
     if runner.failure:
         raise BenchError(f"the Core runner failed: {runner.failure}")
     # What the base really sent, before the faults: an answer the Core accepted that is none of
