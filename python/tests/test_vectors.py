@@ -1,7 +1,7 @@
 """Every shared vector (vectors/frames.json, invalid.json, streams.json) against the Python codec.
 
-The vectors are the contract with the C library (vectors/README.md). A file that does not exist
-yet is skipped; everything in a file that exists runs.
+The vectors are the contract with the C library (vectors/README.md). Every file and list is
+required: a missing one stops the collection of this module with an error naming it.
 """
 
 from __future__ import annotations
@@ -24,12 +24,8 @@ EVENT_ERROR_CODES = {"garbage": 0x0010, "checksum_error": 0x0040, "oversize": 0x
 def cases(filename: str, key: str) -> list[Any]:
     """pytest parameters for the entries of one vector list, named by the vectors' names."""
     entries = vectorfiles.section(filename, key)
-    if entries is None:
-        return [pytest.param(None, marks=pytest.mark.skip(reason=f"vectors/{filename} does not exist yet"))]
     if not entries:
-        return [
-            pytest.param(None, marks=pytest.mark.skip(reason=f"vectors/{filename} has no {key!r} entries"))
-        ]
+        raise FileNotFoundError(f"vectors/{filename} is missing or has no {key!r} entries")
     return [pytest.param(entry, id=str(entry.get("name", index))) for index, entry in enumerate(entries)]
 
 

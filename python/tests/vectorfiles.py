@@ -1,7 +1,7 @@
 """The shared test vectors (vectors/*.json at the repository root), read for the tests.
 
-A vector file that does not exist yet gives None, so a test can skip it cleanly; a file that exists
-but is not valid JSON fails loudly.
+A vector file that does not exist gives None, which the tests turn into an error naming it; a file
+that exists but is not valid JSON fails loudly.
 """
 
 from __future__ import annotations
