@@ -1,6 +1,6 @@
 /* Runs every shared test vector (the JSON files in vectors/, through the generated
- * ctrlbus_vectors.h) against the C frame and message layers. A vector file that does not exist
- * has no cases. */
+ * ctrlbus_vectors.h) against the C frame and message layers. Every file and list is required:
+ * an empty one is a failure. */
 #include <stddef.h>
 #include <stdio.h>
 #include <string.h>
