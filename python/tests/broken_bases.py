@@ -16,6 +16,7 @@ Not a test module itself.
 
 from __future__ import annotations
 
+import math
 import struct
 import threading
 import time
@@ -35,6 +36,8 @@ from ctrlbus.messages import (
     GetBaseStatusAnswer,
     Request,
     Response,
+    SetVAndGetDeadreckonAnswer,
+    to_q16,
 )
 from ctrlbus.sim.base import SimulatedBase
 from ctrlbus.sim.world import World
@@ -259,6 +262,24 @@ class NegativeSensorAngle(SimulatedBase):
         sensors = list(conf.sensors)
         sensors[2] = replace(sensors[2], angle_deg_q8=(-40 * 256) & 0xFFFF_FFFF)
         return replace(conf, sensors=tuple(sensors))
+
+
+class DeadreckonFromCommand(SimulatedBase):
+    """Reports the commanded turn as its deadreckon (omega times the time since the last call)
+    instead of what the wheels did: after the watchdog stops the wheels, the Core's pose keeps
+    turning (§9.1)."""
+
+    def __init__(self) -> None:
+        super().__init__(World(seed=SEED))
+        self._omega_radps = 0.0
+        self._since_s: float | None = None
+
+    def set_velocity(self, vx_mps: float, vy_mps: float, omega_radps: float) -> SetVAndGetDeadreckonAnswer:
+        measured = super().set_velocity(vx_mps, vy_mps, omega_radps)
+        now = self.world.time_s
+        elapsed = 0.0 if self._since_s is None else now - self._since_s
+        self._since_s, commanded, self._omega_radps = now, self._omega_radps, omega_radps
+        return replace(measured, dtheta_deg_q16=to_q16(math.degrees(commanded * elapsed)))
 
 
 class _StatusWithExtraByte(GetBaseStatusAnswer):
@@ -514,6 +535,13 @@ BROKEN_BASES: tuple[BrokenBase, ...] = (
         "no motor watchdog (§9.1)",
         "watchdog",
         lambda: _sim_stack(watchdog_s=None),
+        only="19",
+    ),
+    BrokenBase(
+        "deadreckon-from-command",
+        "the deadreckon integrates the commanded turn, which goes on after the watchdog (§9.1)",
+        "watchdog",
+        lambda: _sim_stack(DeadreckonFromCommand()),
         only="19",
     ),
     BrokenBase(

@@ -178,7 +178,8 @@ def test_the_simulated_base_passes_every_check_through_the_cli_over_a_pty(tmp_pa
     others = relaxed({name: Status(check["status"]) for name, check in by_name.items() if name != "profile"})
     assert set(others.values()) == {Status.PASS}, result.stdout
     sent = [line["hex"] for line in by_name["watchdog"]["evidence"] if line["direction"] == "sent"]
-    assert any(text.startswith("10 12 F8 40") for text in sent)  # SET_BASE_MOTOR, byte for byte
+    assert any(text.startswith("10 0E F8 41") for text in sent)  # SET_V_AND_GET_DEADRECKON, byte for byte
+    assert "deadreckon:" in by_name["watchdog"]["message"], by_name["watchdog"]["message"]
     links = [rule["link"] for check in data["checks"] for rule in check["rules"]]
     assert all(link.startswith("docs/protocol.md#") for link in links)
 

@@ -3,9 +3,10 @@ motion that must stop (the motor watchdog), and answer latency.
 
 Motion is observed through GET_BASE_MOTOR_DATA's wheel travel totals (both wheels, absolute
 changes, so bases whose encoders have no direction work too) and, where the base answers it,
-through SET_V_AND_GET_DEADRECKON's turn. The wheels are commanded to spin in place (left back,
-right forward) at SPIN_MM_S, the motion that needs the least room, and are always commanded to
-stop when the check ends.
+through SET_V_AND_GET_DEADRECKON's turn. The robot is commanded to spin in place, the motion
+that needs the least room (check 18: SET_BASE_MOTOR, left back and right forward at SPIN_MM_S;
+the watchdog check: SET_V_AND_GET_DEADRECKON at SPIN_OMEGA_RADPS, as a Core drives), and is
+always commanded to stop when the check ends.
 """
 
 from __future__ import annotations
@@ -54,7 +55,8 @@ WATCHDOG_TOLERANCE_S = 0.25  # measurement, scheduling and the wheels' own decel
 WATCHDOG_LOOK_S = 1.5  # when, after the last CTRL_BUS frame, the checker looks again
 CALIBRATE_S = 0.25  # spacing of the two readings that measure the spin rate
 KEEPALIVE_S = 0.2  # SYNC / ECHO spacing while silent on CTRL_BUS
-MIN_RATE_FRACTION = 0.2  # the wheels must reach this share of SPIN_MM_S to be observable
+MIN_RATE_FRACTION = 0.2  # share of the commanded or measured motion below which nothing moves
+MIN_SPIN_TRAVEL_MM_S = 10.0  # wheel travel (both wheels) below which the SET_V spin cannot be timed
 WATCHDOG_CODE = 0x01038000  # §10.3: "motor watchdog tripped"
 LATENCY_WARN_S = 0.050  # p99 above this: warning (the reference answers in 1-5 ms, §8.4)
 LATENCY_LATE_LIMIT = 5  # answers later than the request timeout before the sampling stops
@@ -88,19 +90,27 @@ def _motor(ctx: CheckContext, what: str = "GET_BASE_MOTOR_DATA") -> tuple[GetBas
     return answer, exchange.sent_at
 
 
-def _turn_deg(ctx: CheckContext) -> float | None:
-    """SET_V_AND_GET_DEADRECKON with zero velocity: the turn since the previous one (None if the
-    base does not answer it readably; check 5 judges that)."""
-    frame = ctx.prober.exchange(
-        request_frame(SetVAndGetDeadreckon(0, 0, 0)), "SET_V_AND_GET_DEADRECKON 0"
-    ).frame
+def _set_v_turn(ctx: CheckContext, omega_radps: float = 0.0, what: str = "") -> tuple[float | None, float]:
+    """SET_V_AND_GET_DEADRECKON turning in place at omega_radps: the turn since the previous one
+    (None if the base does not answer it readably; check 5 judges that), and when it was sent."""
+    request = SetVAndGetDeadreckon(0, 0, to_q16(omega_radps))
+    exchange = ctx.prober.exchange(
+        request_frame(request), what or f"SET_V_AND_GET_DEADRECKON omega {omega_radps:g}"
+    )
+    frame = exchange.frame
     if frame is None:
-        return None
+        return None, exchange.sent_at
     try:
         answer = decode_answer("SET_V_AND_GET_DEADRECKON", frame.cmd, frame.payload)
     except MessageError:
-        return None
-    return answer.dtheta_deg if isinstance(answer, SetVAndGetDeadreckonAnswer) else None
+        return None, exchange.sent_at
+    turn = answer.dtheta_deg if isinstance(answer, SetVAndGetDeadreckonAnswer) else None
+    return turn, exchange.sent_at
+
+
+def _turn_deg(ctx: CheckContext) -> float | None:
+    """SET_V_AND_GET_DEADRECKON with zero velocity: the turn since the previous one."""
+    return _set_v_turn(ctx, 0.0, "SET_V_AND_GET_DEADRECKON 0")[0]
 
 
 def _stop(ctx: CheckContext) -> None:
@@ -202,22 +212,32 @@ def _watchdog_in_health(ctx: CheckContext) -> None:
 
 
 def check_watchdog(ctx: CheckContext) -> None:
+    """The robot turns in place on SET_V_AND_GET_DEADRECKON, then hears only SYNC and ECHO: the
+    wheel totals (GET_BASE_MOTOR_DATA) and the deadreckon turn (the next SET_V_AND_GET_DEADRECKON)
+    must both show it stopped within the watchdog time of the last CTRL_BUS frame."""
     prober = ctx.prober
+    spin = f"SET_V_AND_GET_DEADRECKON omega {SPIN_OMEGA_RADPS:g} rad/s"
     try:
         _stop(ctx)
         prober.wait(SETTLE_STOP_S)
-        ctx.expect_ok(SetBaseMotor((-SPIN_MM_S, SPIN_MM_S, 0, 0)), EmptyAnswer)
-        prober.wait(CALIBRATE_S)
+        _set_v_turn(ctx, SPIN_OMEGA_RADPS, f"{spin} (start turning)")
+        prober.wait(CALIBRATE_S)  # up to speed
         first, first_at = _motor(ctx, "GET_BASE_MOTOR_DATA (measuring the spin)")
+        _, interval_start = _set_v_turn(ctx, SPIN_OMEGA_RADPS, f"{spin} (a deadreckon interval starts)")
         prober.wait(CALIBRATE_S)
-        second, last_ctrl_bus = _motor(ctx, "GET_BASE_MOTOR_DATA (the last CTRL_BUS frame for a while)")
-        rate = _travel(first, second) / max(1e-3, last_ctrl_bus - first_at)  # both wheels, mm/s
-        if rate < MIN_RATE_FRACTION * 2 * SPIN_MM_S:
+        second, second_at = _motor(ctx, "GET_BASE_MOTOR_DATA (measuring the spin)")
+        turned, last_ctrl_bus = _set_v_turn(
+            ctx, SPIN_OMEGA_RADPS, f"{spin} (the last CTRL_BUS frame for a while)"
+        )
+        rate = _travel(first, second) / max(1e-3, second_at - first_at)  # both wheels, mm/s
+        if rate < MIN_SPIN_TRAVEL_MM_S:
             ctx.warn(
-                f"the wheels hardly moved on SET_BASE_MOTOR ±{SPIN_MM_S} mm/s ({rate:.0f} mm/s of travel), "
-                "so the watchdog cannot be observed"
+                f"the wheels hardly moved on {spin} ({rate:.0f} mm/s of travel), so the watchdog "
+                "cannot be observed"
             )
             return
+        interval_s = max(1e-3, last_ctrl_bus - interval_start)
+        turn_rate = None if turned is None or abs(turned) < STILL_TURN_DEG else turned / interval_s
         prober.note(f"spinning: {rate:.0f} mm/s of wheel travel (both wheels); now only SYNC and ECHO")
         _keep_talking_without_ctrl_bus(ctx, last_ctrl_bus + WATCHDOG_LOOK_S)
         third, third_at = _motor(
@@ -225,7 +245,11 @@ def check_watchdog(ctx: CheckContext) -> None:
         )
         prober.wait(CALIBRATE_S)
         fourth, fourth_at = _motor(ctx, "GET_BASE_MOTOR_DATA (still moving?)")
-        ran_s = _travel(second, third) / rate
+        after, _ = _set_v_turn(
+            ctx, 0.0, "SET_V_AND_GET_DEADRECKON 0 (the turn since the last CTRL_BUS frame)"
+        )
+        # The wheel travel from the second reading on, less the little before the last frame.
+        ran_s = _travel(second, third) / rate - (last_ctrl_bus - second_at)
         still_mm_s = _travel(third, fourth) / max(1e-3, fourth_at - third_at)
         limit = WATCHDOG_LIMIT_S + WATCHDOG_TOLERANCE_S
         if still_mm_s > MIN_RATE_FRACTION * rate:
@@ -240,7 +264,22 @@ def check_watchdog(ctx: CheckContext) -> None:
                 f"stop them after {WATCHDOG_LIMIT_S:g} s (+{WATCHDOG_TOLERANCE_S:g} s tolerance, §9.1)"
             )
             return
-        ctx.summary = f"the wheels stopped about {ran_s:.2f} s after the last CTRL_BUS frame"
+        summary = f"the wheels stopped about {max(0.0, ran_s):.2f} s after the last CTRL_BUS frame"
+        if turn_rate is None or after is None:
+            ctx.note(
+                "the deadreckon turn did not show the spin, so the stop was seen in the wheel totals only"
+            )
+        else:
+            turned_s = after / turn_rate
+            if turned_s > limit:
+                ctx.fail(
+                    f"the deadreckon kept turning about {turned_s:.2f} s after the last CTRL_BUS frame "
+                    f"({after:.1f}° at {turn_rate:.1f}°/s) although the wheel totals stopped after "
+                    f"{ran_s:.2f} s: the Core would see the robot still moving (§9.1)"
+                )
+                return
+            summary += f" (deadreckon: {max(0.0, turned_s):.2f} s)"
+        ctx.summary = summary
         if ran_s < WATCHDOG_LIMIT_S / 2:
             ctx.note(f"a short watchdog ({ran_s:.2f} s); the default is {WATCHDOG_LIMIT_S:g} s")
         _watchdog_in_health(ctx)
