@@ -8,8 +8,13 @@ from __future__ import annotations
 
 import io
 import json
+import os
+import pty
 import random
+import select
 import struct
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -481,6 +486,36 @@ def test_colour_only_when_asked_or_on_a_terminal(tmp_path: Path, capsys: pytest.
     _, never, _ = run_decode(capsys, path, "--color", "never")
     assert "\x1b[" in always
     assert "\x1b[" not in auto and auto == never
+
+
+def test_colour_by_default_on_a_real_terminal(tmp_path: Path) -> None:
+    path = str(write_hex(tmp_path, "10 02 F8 30 DA"))
+    master, slave = pty.openpty()
+    try:
+        result = subprocess.run(
+            [sys.executable, "-m", "ctrlbus", "decode", path],
+            stdout=slave,
+            stderr=subprocess.PIPE,
+            timeout=60,
+            check=False,
+        )
+        os.close(slave)
+        slave = -1
+        shown = b""
+        while select.select([master], [], [], 0.5)[0]:
+            try:
+                chunk = os.read(master, 4096)
+            except OSError:  # EIO: the terminal's other end is closed and drained
+                break
+            if not chunk:
+                break
+            shown += chunk
+    finally:
+        if slave >= 0:
+            os.close(slave)
+        os.close(master)
+    assert result.returncode == 0, result.stderr
+    assert b"GET_BASE_STATUS" in shown and b"\x1b[" in shown, shown
 
 
 def test_empty_input_decodes_to_nothing(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
