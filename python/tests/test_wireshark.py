@@ -21,7 +21,14 @@ ROOT = Path(__file__).resolve().parents[2]
 DISSECTOR = ROOT / "tools" / "wireshark" / "ctrlbus.lua"
 STREAM_VECTORS = json.loads((ROOT / "vectors" / "streams.json").read_text(encoding="utf-8"))["streams"]
 EPOCH = 1_700_000_000.0
-pytestmark = pytest.mark.skipif(TSHARK is None, reason="tshark is not installed (apt-get install tshark)")
+
+
+@pytest.fixture(autouse=True)
+def _tshark_is_installed() -> None:
+    """scripts/setup.sh installs tshark, so its absence is a broken set-up, not a reason to skip."""
+    if TSHARK is None:
+        pytest.fail("tshark is not installed: scripts/setup.sh installs it (apt-get install tshark)")
+
 
 C = Direction.CORE_TO_BASE
 B = Direction.BASE_TO_CORE

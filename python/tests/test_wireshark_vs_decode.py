@@ -31,7 +31,14 @@ TSHARK = shutil.which("tshark")
 ROOT = Path(__file__).resolve().parents[2]
 DISSECTOR = ROOT / "tools" / "wireshark" / "ctrlbus.lua"
 TIMEOUT_MS = 100  # the same inter-byte timeout on both sides
-pytestmark = pytest.mark.skipif(TSHARK is None, reason="tshark is not installed (apt-get install tshark)")
+
+
+@pytest.fixture(autouse=True)
+def _tshark_is_installed() -> None:
+    """scripts/setup.sh installs tshark, so its absence is a broken set-up, not a reason to skip."""
+    if TSHARK is None:
+        pytest.fail("tshark is not installed: scripts/setup.sh installs it (apt-get install tshark)")
+
 
 C = Direction.CORE_TO_BASE
 B = Direction.BASE_TO_CORE
