@@ -53,12 +53,14 @@ size: setup
 bench: c-build
 	@$(PY) bench/run.py
 
-# Each libFuzzer target for FUZZ_SECONDS (default 1300: 10 M executions on a 2-core machine), then
-# the library's coverage by the corpora; records the run in bench/results/fuzz.json and
-# docs/reliability.md.
-FUZZ_SECONDS ?= 1300
+# Each libFuzzer target until FUZZ_RUNS executions (default 10 M) or for FUZZ_SECONDS at most
+# (default 3600), then the library's coverage by the corpora; records the run in
+# bench/results/fuzz.json and docs/reliability.md.
+FUZZ_RUNS ?= 10000000
+FUZZ_SECONDS ?= 3600
 fuzz: setup
-	@FUZZ_COVERAGE=1 FUZZ_RECORD=1 FUZZ_COMMAND="make fuzz FUZZ_SECONDS=$(FUZZ_SECONDS)" scripts/fuzz.sh $(FUZZ_SECONDS)
+	@FUZZ_COVERAGE=1 FUZZ_RECORD=1 FUZZ_RUNS=$(FUZZ_RUNS) \
+	  FUZZ_COMMAND="make fuzz FUZZ_RUNS=$(FUZZ_RUNS) FUZZ_SECONDS=$(FUZZ_SECONDS)" scripts/fuzz.sh $(FUZZ_SECONDS)
 
 # Each libFuzzer target for 30 s (part of `make test`).
 fuzz-smoke: setup

@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
-# Runs the C library's libFuzzer targets (c/fuzz/README.md). `make fuzz FUZZ_SECONDS=…` calls it,
-# `make fuzz-smoke` (part of `make test`) runs it for 30 s per target.
+# Runs the C library's libFuzzer targets (c/fuzz/README.md). `make fuzz` calls it (10 M executions
+# per target), `make fuzz-smoke` (part of `make test`) runs it for 30 s per target.
 #
 #   scripts/fuzz.sh [SECONDS]                    every target for SECONDS each (default 30), in turn
 #   FUZZ_TARGETS="decoder" scripts/fuzz.sh 600   some targets only
+#   FUZZ_RUNS=10000000 scripts/fuzz.sh 3600      each target until N executions, SECONDS at most
 #   FUZZ_COVERAGE=1 scripts/fuzz.sh [SECONDS]    then the line coverage of c/src by the corpora
 #                                                (SECONDS 0: the coverage only, no fuzzing)
 #   FUZZ_RECORD=1 scripts/fuzz.sh [SECONDS]      then record the run (bench/fuzz_report.py):
@@ -38,8 +39,8 @@ fuzz_target() {
   local corpus="$build/corpus/$target" artifacts="$build/artifacts/$target/"
   local log="$build/logs/$target.log" status=0 edges crash result=ok
   mkdir -p "$corpus" "$artifacts"
-  "$build/fuzz/fuzz_$target" -max_total_time="$seconds" -max_len="$max_len" -timeout=10 \
-    -rss_limit_mb=2048 -print_final_stats=1 -artifact_prefix="$artifacts" \
+  "$build/fuzz/fuzz_$target" -max_total_time="$seconds" -runs="${FUZZ_RUNS:--1}" -max_len="$max_len" \
+    -timeout=10 -rss_limit_mb=2048 -print_final_stats=1 -artifact_prefix="$artifacts" \
     "$corpus" "$build/fuzz/seeds/$target" >"$log" 2>&1 || status=$?
   edges=$(grep -oE 'Loaded [0-9]+ modules +\([0-9]+ inline 8-bit counters\)' "$log" |
             grep -oE '\([0-9]+' | tr -d '(' | head -1 || true)
