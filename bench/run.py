@@ -83,6 +83,9 @@ BURST_MAX = 64
 @dataclass
 class Options:
     capture: Path | None = None
+    # The commit the run measures, read once before it starts: the run writes result files, which
+    # would otherwise make every benchmark after the first look measured on a modified tree.
+    git: dict[str, Any] = field(default_factory=git_revision)
 
 
 @dataclass
@@ -541,7 +544,7 @@ def run_one(bench: Benchmark, ctx: BenchContext, opts: Options) -> dict[str, Any
         "tool_commands": ctx.commands,
         "seconds": round(time.perf_counter() - started, 2),
         "machine": machine_facts(),
-        "git": git_revision(),
+        "git": opts.git,
         "when": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
     }
 
