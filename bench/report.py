@@ -25,6 +25,15 @@ from common import FAILED, PENDING, BenchError
 TABLE_HEADER = ["Measure", "Goal", "ctrlbus", "Peer, same run", "Ratio", "Goal met"]
 
 
+def _save(fig: Any, path: Path) -> Path:
+    """Lay out, write and close a figure; returns where it went."""
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
 def _bar_chart(
     path: Path,
     title: str,
@@ -58,11 +67,7 @@ def _bar_chart(
         ax.set_ylim(ymin, top + (top - ymin) * 0.12)
     ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2, frameon=False)
     ax.margins(y=0.12)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def _plot_c_parser_cost(result: dict[str, Any], img_dir: Path) -> Path:
@@ -143,12 +148,7 @@ def _plot_base_exchange(result: dict[str, Any], img_dir: Path) -> Path:
         fontsize=9,
     )
     ax.margins(x=0.15)
-    fig.tight_layout()
-    path = img_dir / "bench-base-exchange.png"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    return _save(fig, img_dir / "bench-base-exchange.png")
 
 
 def _plot_footprint(result: dict[str, Any], img_dir: Path) -> Path:
@@ -181,12 +181,7 @@ def _plot_footprint(result: dict[str, Any], img_dir: Path) -> Path:
     ax.set_title("C base stack, linked: where the .text comes from", fontsize=10)
     ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=3, frameon=False)
     ax.margins(y=0.1)
-    fig.tight_layout()
-    path = img_dir / "bench-footprint.png"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    return _save(fig, img_dir / "bench-footprint.png")
 
 
 def _plot_end_to_end(result: dict[str, Any], img_dir: Path) -> Path:
@@ -252,12 +247,7 @@ def _plot_link_efficiency(result: dict[str, Any], img_dir: Path) -> Path:
     ax.set_ylabel("% of the theoretical maximum")
     ax.set_title("SET_V_AND_GET_DEADRECKON at 115200 8N1: link efficiency", fontsize=10)
     ax.legend(fontsize=8, loc="lower left", frameon=False)
-    fig.tight_layout()
-    path = img_dir / "bench-link-efficiency.png"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    return _save(fig, img_dir / "bench-link-efficiency.png")
 
 
 PLOTTERS = {

@@ -26,36 +26,13 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "read_file.h"
+
 #include "ctrlbus/base.h"
 
 #define RX_RING 256u
 #define FRAME_BUFFER CTRLBUS_BASE_FRAME_BUFFER_RECOMMENDED
 #define PERIOD_MS 50u
-
-static unsigned char *read_file(const char *path, size_t *size)
-{
-    FILE *f = fopen(path, "rb");
-    if (f == NULL) {
-        perror(path);
-        return NULL;
-    }
-    if (fseek(f, 0, SEEK_END) != 0) {
-        fclose(f);
-        return NULL;
-    }
-    long end = ftell(f);
-    rewind(f);
-    unsigned char *data = malloc(end > 0 ? (size_t)end : 1u);
-    if (data == NULL || fread(data, 1, (size_t)end, f) != (size_t)end) {
-        fprintf(stderr, "%s: cannot read\n", path);
-        free(data);
-        fclose(f);
-        return NULL;
-    }
-    fclose(f);
-    *size = (size_t)end;
-    return data;
-}
 
 /* Size of the frame starting at data[0], from its header; 0 if it is not a whole frame. */
 static size_t frame_size(const unsigned char *data, size_t left)

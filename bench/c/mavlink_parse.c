@@ -16,32 +16,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "ctrlbus_peer/mavlink.h"
+#include "read_file.h"
 
-static unsigned char *read_file(const char *path, size_t *size)
-{
-    FILE *f = fopen(path, "rb");
-    if (f == NULL) {
-        perror(path);
-        return NULL;
-    }
-    if (fseek(f, 0, SEEK_END) != 0) {
-        fclose(f);
-        return NULL;
-    }
-    long end = ftell(f);
-    rewind(f);
-    unsigned char *data = malloc(end > 0 ? (size_t)end : 1u);
-    if (data == NULL || fread(data, 1, (size_t)end, f) != (size_t)end) {
-        fprintf(stderr, "%s: cannot read\n", path);
-        free(data);
-        fclose(f);
-        return NULL;
-    }
-    fclose(f);
-    *size = (size_t)end;
-    return data;
-}
+#include "ctrlbus_peer/mavlink.h"
 
 /* The same walk over the bytes as the parsing loops, with the parser call replaced by a store
  * the compiler cannot drop. */
