@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 # ctrlbus: every job starts with `setup`, which installs what a fresh Debian machine lacks.
 SHELL := /bin/bash
 VENV  := .venv

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Build the C harnesses and count their instructions under callgrind.
 
 Method: each harness program takes a mode and a stream file. Mode `baseline` reads the file and

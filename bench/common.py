@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Shared plumbing of the benchmarks: paths, running commands, machine facts, result records."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """End to end: the Core emulator against real base processes, and the link efficiency at 115200 8N1.
 
 Two benchmarks share this module, and the bases they drive:

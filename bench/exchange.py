@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Full base exchange: instructions for the C base stack to take one SET_V_AND_GET_DEADRECKON
 request and stream out its answer, under callgrind.
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """What a benchmark module hands back to bench/run.py, which turns it into the run's `Outcome`.
 
 The benchmark modules (exchange.py, footprint.py, endtoend.py) cannot import run.py (it is the

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Footprint of the C library on Cortex-M: what `make size` (scripts/size.sh) prints, tabled
 against the goals, and where the base stack's bytes go.
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Record a libFuzzer run of scripts/fuzz.sh: bench/results/fuzz.json and the fuzzing table of
 docs/reliability.md (the block between `<!-- bench:fuzz:begin -->` and `<!-- bench:fuzz:end -->`).
 

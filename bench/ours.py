@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Our side of the benchmarks: the one place that knows the ctrlbus decoder APIs (C and Python).
 
 Each accessor returns the thing to measure, or raises Pending naming what is missing, so a

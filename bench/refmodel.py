@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """A model of the reference base firmware's receiver, for the garbage-burst recovery comparison.
 
 It behaves as control-bus.md §4 describes the reference: it hunts for 0x10 or 0x50, reads the

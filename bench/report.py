@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Publish benchmark results: PNG plots (matplotlib, Agg) and the generated parts of docs/performance.md.
 
 docs/performance.md is hand-written prose with generated blocks. Each block sits between

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: MIT
 """Run the ctrlbus benchmarks: `make bench` runs this with no arguments.
 
 Every benchmark writes bench/results/<name>.json (its figures, the exact commands, the machine

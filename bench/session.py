@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Captures for the parser benchmarks: a synthetic Core<->base session, a noisy variant, or a real recording.
 
 The synthetic session is what the Core emulator does at its default rates: SET_V_AND_GET_DEADRECKON

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Fault-injection soak: the Core emulator drives a base through the fault injector for a long run.
 
 Two kinds of run:

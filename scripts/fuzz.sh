@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # Runs the C library's libFuzzer targets (c/fuzz/README.md). `make fuzz` calls it (10 M executions
 # per target), `make fuzz-smoke` (part of `make test`) runs it for 30 s per target.
 #

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # Idempotent set-up for a fresh Debian machine: apt packages, then the Python venv in .venv.
 # Fast when everything is already there, so `make test` and `make demo` can always call it.
 set -euo pipefail

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # Footprint of the ctrlbus C library on Cortex-M (called by `make size`).
 #
 # For cortex-m0plus, cortex-m3 and cortex-m4 it compiles every c/src/*.c with arm-none-eabi-gcc

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * Benchmark harness for a full base exchange through the ctrlbus C base stack (base.h): feed one
  * SET_V_AND_GET_DEADRECKON request, poll, and let the stack stream its answer out through a write

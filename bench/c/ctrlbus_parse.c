@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * Benchmark harness for the ctrlbus C stream decoder: feed a capture file to the decoder and count
  * the frames, so that callgrind can count the instructions it takes.

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /*
  * Benchmark harness for the MAVLink v2 peer: feed a stream file to MAVLink's C parser byte by
  * byte and count the messages, so that callgrind can count the instructions it takes.

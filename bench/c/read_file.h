@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The benchmark harnesses' one way to read their input stream: the whole file into memory (the
  * caller frees it). Returns NULL after saying why on stderr. */
 #ifndef CTRLBUS_BENCH_READ_FILE_H

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Generate the MAVLink peer from bench/mavlink/ctrlbus_peer.xml with pymavlink's mavgen.
 
 Nothing generated is committed: the C headers and the Python dialect module are written under

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """MAVLink v2 streams for the peer side: the synthetic Core<->base session, message for message.
 
 Each request and answer of bench/session.py becomes one message of our dialect carrying the same

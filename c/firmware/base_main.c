@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The ctrlbus base firmware for mps2-an385: the simulated base (the same sources as posix_base)
  * served on UART0 by the ctrlbus base stack.
  *

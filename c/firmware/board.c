@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Board support for mps2-an385: SysTick millisecond clock and the CMSDK UART0 driver. */
 #include "board.h"
 

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Board support for the mps2-an385 firmware: a 1 ms clock from SysTick and the UART0 driver.
  *
  * The interrupt handlers live in board.c and hand received bytes to one callback that the

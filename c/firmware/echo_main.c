@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Board bring-up probe: every byte received on UART0 is sent back.
  *
  * It proves the path the base firmware relies on (vector table, .data/.bss start-up, the UART0

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Registers of the parts of QEMU's mps2-an385 board (ARM AN385: Cortex-M3 on the MPS2 FPGA) that
  * the firmware uses. Addresses and interrupt numbers are those of QEMU's model (hw/arm/mps2.c),
  * which follows the AN385 application note. */

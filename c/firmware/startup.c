@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Cortex-M3 start-up for mps2-an385: the vector table and the reset handler.
  *
  * The reset handler copies initialised data from its load address (after the code) to RAM,

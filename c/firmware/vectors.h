@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Exception and interrupt handlers that the vector table (startup.c) points to. */
 #ifndef CTRLBUS_FW_VECTORS_H
 #define CTRLBUS_FW_VECTORS_H

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The base stack under fuzzing, with an oracle for what it answers (see base_harness.h). */
 #include "base_harness.h"
 

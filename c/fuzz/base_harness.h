@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The base stack (ctrlbus/base.h) under fuzzing, with an oracle for what it answers. Shared by
  * fuzz_base.c (raw bytes) and fuzz_fixup.c (frames with their lengths and checksums fixed up).
  *

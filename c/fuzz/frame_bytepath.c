@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* frame.c without its bulk path, every public name prefixed bytepath_ (see frame_bytepath.h). A
  * public function added to frame.c needs a line here too (the link fails until it has one). */
 #define CTRLBUS_DECODER_FAST 0

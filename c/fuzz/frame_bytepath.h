@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The decoder of frame.c built once more without its bulk path (CTRLBUS_DECODER_FAST 0, the
  * byte-by-byte scan alone) and under other names, so that a fuzz target can run both side by side
  * and require the same results from them: the byte path is the decoder as first written, the bulk

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Fuzz target: the whole base stack (ctrlbus/base.h) on arbitrary bytes: bytes in through the
  * receive ring, answers out through the write callback, every answer checked by the oracle of
  * base_harness.h (it must be a valid frame, and the right answer to the right request or event).

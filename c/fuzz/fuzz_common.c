@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Shared support of the ctrlbus fuzz targets (see fuzz_common.h). */
 #include "fuzz_common.h"
 

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Shared support of the ctrlbus fuzz targets (see README.md in this directory).
  *
  * Every target is a libFuzzer entry point, LLVMFuzzerTestOneInput(), that never returns an error:

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Fuzz target: the stream decoder (ctrlbus/frame.h) on arbitrary bytes, cut and timed at random.
  *
  * Input: three setting bytes, then the stream.

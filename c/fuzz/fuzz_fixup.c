@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Fuzz target, "fix-up" mode: the input is a list of (cmd, payload) records that the target turns
  * into frames with the right length and checksum, so that nearly every input reaches the payload
  * handling that random bytes almost never reach past the 8-bit checksum: the message codecs

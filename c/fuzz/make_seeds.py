@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: MIT
 """Writes the fuzz targets' seed corpora from the shared vectors (vectors/*.json).
 
     make_seeds.py --vectors DIR --out DIR

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* main() for the fuzz targets built without libFuzzer: runs LLVMFuzzerTestOneInput() on saved
  * inputs, so that seeds and reproducers of crashes run as ordinary tests.
  *

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The base stack (see ctrlbus/base.h): receive ring, dispatch, answers, watchdog, limits. */
 #include "ctrlbus/base.h"
 

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Differential-drive helpers (see ctrlbus/diffdrive.h). */
 #include "ctrlbus/diffdrive.h"
 

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Frame layer: streaming encoder and streaming decoder (see ctrlbus/frame.h). */
 #include "ctrlbus/frame.h"
 

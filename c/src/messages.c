@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Typed requests and answers, serialised field by field (see ctrlbus/messages.h). */
 #include "ctrlbus/messages.h"
 

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: MIT
 """Write the shared JSON test vectors (vectors/*.json) as a C header for the C tests.
 
 The C tests never carry copies of the vectors: CMake runs this at build time, whenever a vector

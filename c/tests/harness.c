@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The test harness (see harness.h). Test code, so stdio and file-scope state are fine here. */
 #include "harness.h"
 

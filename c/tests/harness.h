@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* A tiny test harness: checks that report file:line and keep going, a runner, a summary.
  *
  *   static void test_something(void) { CHECK_EQ(1 + 1, 2); }

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Test support: messages as flat field lists (see msg_fields.h). */
 #include "msg_fields.h"
 

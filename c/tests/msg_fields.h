@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Test support: a decoded message as a flat list of (path, value) leaves, named exactly like the
  * contract's `fields` ("serial[1]", "sensors[0].x_mm_q8", null for absent optional fields), so a
  * message can be compared with a vector's fields or with another message. */

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Test support: decoder result recorder (see rx_log.h). */
 #include "rx_log.h"
 

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Test support: feeds a ctrlbus decoder the way an application would and records every result
  * (frames with a copy of their payload, events) in stream order, so runs can be compared. */
 #ifndef CTRLBUS_TEST_RX_LOG_H

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Unit tests of the base stack (ctrlbus/base.h): every request, every fault answer, profiles,
  * the motor watchdog on a fake clock, velocity limits, health, the command queue, reboot, the
  * receive ring fed from a simulated interrupt and from a second thread, and the shared vectors'

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Unit tests of the differential-drive helpers (ctrlbus/diffdrive.h). */
 #include <stdint.h>
 #include <stdio.h>

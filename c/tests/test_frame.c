@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Unit tests of the frame layer: encoder sink, whole-frame encoding, and the stream decoder. */
 #include <stdio.h>
 #include <string.h>

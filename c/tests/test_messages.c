@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Unit tests of the message layer: every request and answer round trip, the reference's example
  * frames, wrong lengths, and the errors a base answers with. */
 #include <string.h>

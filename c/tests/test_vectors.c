@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Runs every shared test vector (the JSON files in vectors/, through the generated
  * ctrlbus_vectors.h) against the C frame and message layers. Every file and list is required:
  * an empty one is a failure. */

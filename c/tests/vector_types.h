@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The shapes of the shared test vectors as the generated ctrlbus_vectors.h holds them
  * (gen_vectors.py writes that header from the JSON files in vectors/; see vectors/README.md for
  * the meaning of every item). Arrays that the JSON leaves out or empty are NULL with a count of 0. */

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Test harness for base processes (posix_base, the QEMU firmware): start and always stop them,
 and talk to them over their serial link with bounded waits and clear failure messages.
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Deliberately broken bases for test_checker.py: each breaks exactly one rule of
 docs/protocol.md, and names the conformance check that must catch it.
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Shared test settings: one hypothesis profile so the property tests stay fast on 2 cores."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """A scriptable sans-IO base for the Core emulator's tests (not a test module).
 
 `FakeBase` answers every request with the message codec, and has a knob for each answer variant

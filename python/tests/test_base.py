@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The base framework (ctrlbus.base): bytes in, exact bytes out, with a fake clock.
 
 Every behaviour of docs/base-framework.md's list is checked here on the sans-IO stack, with a

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The benchmarks cannot rot: a smoke run of every one (bench/run.py --smoke) gives sane results.
 
 No timing is asserted here (speed goals are checked and published by `make bench`); these tests

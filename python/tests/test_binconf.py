@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The 0x21 binary configuration codec: hand-written blobs, malformed input, random round trips."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Capture files: the exact pcap bytes, reading every pcap variant, damage and live growth."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """`ctrlbus capture` and `ctrlbus replay`, on captures made by our own Core emulator and simulated
 base: a clean session and a noisy one (bit errors and garbage bursts injected on both lines), both
 run in virtual time (ctrlbus.vtime), then decoded, replayed over TCP on 127.0.0.1 and captured

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """`ctrlbus check`, the conformance checker, against good and deliberately broken bases.
 
 - The simulated base (ctrlbus.sim.base on ctrlbus.base) passes: in process over a link pair

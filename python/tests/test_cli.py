@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The `ctrlbus` command as a whole: usage errors are one line and exit 2, help works."""
 
 from __future__ import annotations

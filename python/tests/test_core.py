@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The Core emulator (ctrlbus.core): protocol behaviour of docs/protocol.md §11, telemetry,
 controls, actions, statistics and the snapshot, all in virtual time (ctrlbus.vtime) against a
 scriptable fake base and the simulated base; plus the real-time runner over in-process links."""

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """`ctrlbus core`: bad ports and options end with one line and exit code 2; against a real pty
 (`ctrlbus sim --pty`, or a fake base served in this process) it reports a connected base as
 JSON lines or status lines, serves the dashboard when asked, and stops cleanly.

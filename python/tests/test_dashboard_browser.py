@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Acceptance: the whole demo (simulated base on a pty, Core emulator, dashboard) in a real browser.
 
 Headless Chromium is Debian's /usr/bin/chromium (scripts/setup.sh installs it), driven by

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """`ctrlbus decode` and the annotation engine behind it (ctrlbus.annotate).
 
 The frames are written by hand (the reference's §6 examples, and a few more whose checksums were

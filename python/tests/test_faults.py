@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The fault injector (ctrlbus.faults): the spec grammar, each fault on its own, determinism, the
 vtime filter, the link wrapper (with a fake clock: no timed assertions) and the fault: URL."""
 

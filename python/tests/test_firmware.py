@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The Cortex-M3 firmware (c/firmware/) under QEMU's mps2-an385 board.
 
 The firmware is built here with its own Makefile (make -C c/firmware), so `make test` always runs

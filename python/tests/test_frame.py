@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Frame layer: encoder, checksum and the stream decoder's rules (vectors/README.md), one by one."""
 
 from __future__ import annotations

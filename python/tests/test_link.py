@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The byte links: every kind moves bytes both ways and fails with LinkError/UsageError, not a traceback."""
 
 from __future__ import annotations

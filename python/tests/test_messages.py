@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Typed messages: layouts from the reference, both historic variants, every error path."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """posix_base (c/examples/posix_base): the C base stack serving the simulated base on TCP or a pty.
 
 Process-level tests: the real program, the real link, frames built and read with ctrlbus.frame.

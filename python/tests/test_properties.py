@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Property tests (hypothesis): the decoder against a literal model of the contract, chunking
 invariance, recovery after garbage, and encode -> decode round trips for every message."""
 

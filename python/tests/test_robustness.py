@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """No input makes ctrlbus raise anything but its documented exceptions (hypothesis).
 
 - The stream decoder takes any bytes in any pieces at any times: it yields frames, counts the rest,

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The simulated base (ctrlbus.sim.base): the World served through the base framework.
 
 Most tests run in virtual time (the test owns the clock and passes it to the stack); one runs the

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """`ctrlbus sim`: the simulated base as a program, over a real pty and over TCP on 127.0.0.1.
 
 The program runs as a child process (base_harness.Process: stderr to a log, bounded waits,

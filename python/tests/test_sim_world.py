@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The simulated world (ctrlbus.sim) and the shared differential-drive math (ctrlbus.kinematics)."""
 
 from __future__ import annotations

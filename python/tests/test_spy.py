@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """`ctrlbus spy` between our Core emulator and the simulated base.
 
 In process: Core runner ↔ in-process links ↔ Spy ↔ in-process links ↔ base runner, with both ends

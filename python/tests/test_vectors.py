@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Every shared vector (vectors/frames.json, invalid.json, streams.json) against the Python codec.
 
 The vectors are the contract with the C library (vectors/README.md). Every file and list is

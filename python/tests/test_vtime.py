@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The virtual-time harness (ctrlbus.vtime): line timing, base latency and ticks, filters in
 both directions, determinism, and its argument checks."""
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The dashboard server against a recording fake source: pushes, controls, validation, access.
 
 The fake implements `ctrlbus.web.source.DashboardSource` and produces snapshots that follow the

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The Wireshark dissector tools/wireshark/ctrlbus.lua, run by tshark on captures written by
 ctrlbus.capture from hand-written frames (checksums worked out by hand, not by our encoder)."""
 

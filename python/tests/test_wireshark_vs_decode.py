@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The Wireshark dissector and `ctrlbus decode` say the same about the same capture.
 
 tshark runs tools/wireshark/ctrlbus.lua over a capture and prints its tree (PDML); `ctrlbus

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The shared test vectors (vectors/*.json at the repository root), read for the tests.
 
 A vector file that does not exist gives None, which the tests turn into an error naming it; a file

@@ -1,3 +1,4 @@
+-- SPDX-License-Identifier: MIT
 -- ctrlbus.lua: Wireshark/tshark dissector for SLAMWARE Control Bus captures made by ctrlbus.
 --
 -- The capture format (docs/capture-format.md): pcap, link type DLT_USER0 (147); each record is one

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* posix_base: the simulated base served over a pty or TCP by the ctrlbus base stack.
  *
  * This file is the host's I/O only: the command line, the link, a monotonic clock and the main

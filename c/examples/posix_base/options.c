@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Command line of posix_base: hand-written (getopt_long is not POSIX) and strict: every value is
  * checked, and anything unexpected is an error naming the argument. */
 #include "options.h"

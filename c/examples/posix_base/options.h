@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Command line of posix_base. */
 #ifndef CTRLBUS_POSIX_BASE_OPTIONS_H
 #define CTRLBUS_POSIX_BASE_OPTIONS_H

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The serial link of posix_base; see posix_link.h. */
 #define _XOPEN_SOURCE 700 /* posix_openpt, grantpt, unlockpt, ptsname */
 

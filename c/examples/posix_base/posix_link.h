@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The serial link of posix_base: a pseudo-terminal, or a TCP listener whose latest accepted
  * connection is the link (a new connection replaces the old one, like replugging a cable).
  *

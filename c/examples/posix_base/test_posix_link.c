@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Tests of posix_base's link (pty and TCP) and of its command line. */
 #define _XOPEN_SOURCE 700
 

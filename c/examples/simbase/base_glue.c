@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* base_glue: the simulated base served by the ctrlbus base stack; see base_glue.h. */
 #include "base_glue.h"
 

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* base_glue: the simulated base (simbase) served by the ctrlbus base stack (ctrlbus/base.h).
  *
  * One piece of code for both hosts of the simulated base: posix_base (c/examples/posix_base, a

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The simulated base; see simbase.h for the model. */
 #include "simbase.h"
 

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* A simulated differential-drive robot base, for the host base (posix_base) and the QEMU
  * firmware: the robot that the protocol stack reports on and drives.
  *

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The simulated base's answers; see simbase_answers.h. */
 #include "simbase_answers.h"
 

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* What the simulated base answers: its state as the ctrlbus message structs (messages.h), and
  * the commands applied to it. This is the application side of a base (the part a base maker
  * writes for their robot); framing, dispatch, errors and the watchdog are the base stack's.

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Unit tests of the simulated base (its differential-drive math is the library's, tested in
  * c/tests/test_diffdrive.c). */
 #include <math.h>

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Unit tests of the simulated base's answers (simbase state -> ctrlbus message structs). */
 #include <stdio.h>
 #include <string.h>

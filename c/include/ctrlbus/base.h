@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* ctrlbus base stack: the slave side of the SLAMWARE Control Bus, for a robot base's firmware.
  *
  * What it does: it takes the bytes the UART receives, finds the requests in them (frame.h's

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* ctrlbus: the SLAMWARE Control Bus in portable C99.
  *
  * This header holds what every layer shares: the library version and the error codes. The layers

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* ctrlbus differential-drive helpers: the math a two-wheel base needs around the Control Bus.
  *
  *   - SET_V_AND_GET_DEADRECKON (0x41) commands a body velocity (vx m/s Q16, omega rad/s Q16);

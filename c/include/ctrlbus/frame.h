@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* ctrlbus frame layer: the streaming encoder ("sink") and the streaming decoder.
  *
  * A frame on the wire (docs/protocol.md has the full text):

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* ctrlbus messages: typed requests and answers of the Control Bus.
  *
  * Every message is a struct whose field names are the contract's (vectors/README.md), with the

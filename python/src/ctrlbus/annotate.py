@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Bytes to an annotated conversation: the engine behind `ctrlbus decode`, `ctrlbus spy` and
 anything else that shows people what went over a Control Bus link.
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The base side of the Control Bus: a sans-IO protocol stack and the application it serves.
 
 A base maker writes the application (`Base`: what the robot reports and how it moves) and lets

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The binary configuration tree of GET_BASE_CONF_ADV (0x21): blob <-> JSON, losslessly.
 
 The blob is a typed tree (reference §5, 0x21): each entry is `key (u8 dictionary id), type (u8),

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Capture files: what went over the wire, both directions, with the time of every chunk.
 
 The format (docs/capture-format.md) is a classic libpcap file that Wireshark and tcpdump open:

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """`python -m ctrlbus.demo` (what `make demo` runs): a base, the Core emulator and the dashboard.
 
     python -m ctrlbus.demo [--base sim|c|qemu] [--http HOST[:PORT]] [--token T] [--speed X]

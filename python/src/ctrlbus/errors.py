@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Every exception ctrlbus raises on purpose derives from CtrlbusError."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Fault injection: a seeded model of a bad serial line, and a link that suffers from it.
 
 The core is sans-IO: `FaultModel.apply(data, now)` takes one chunk that a writer put on the line

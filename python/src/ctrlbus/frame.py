@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Frame layer: encode frames and decode a byte stream into frames.
 
 A frame is ``FLAG LEN CMD PAYLOAD CHECKSUM`` (standard, FLAG 0x10, one length byte) or

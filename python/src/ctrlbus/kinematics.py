@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Differential-drive math, written once for every Python layer that needs it.
 
 The simulator moves its robot with it, the base framework turns SET_V_AND_GET_DEADRECKON commands

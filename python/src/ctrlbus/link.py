@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Byte links: what a master or a base reads from and writes to.
 
 A link moves bytes and nothing else; framing lives in ctrlbus.frame and sessions one layer up.

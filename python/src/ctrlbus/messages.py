@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Typed Control Bus messages: every request and answer of the contract, and their codec.
 
 Each message is a frozen dataclass whose fields carry the contract's names (``vectors/README.md``),

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Virtual time: run a Core session against an in-process base in simulated time.
 
 One loop owns both ends: a `CoreSession` and a sans-IO base (anything with

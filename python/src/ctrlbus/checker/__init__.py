@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The conformance checker: does a base follow docs/protocol.md, and will it work with a Core?
 
     link = open_link("/dev/ttyUSB0")

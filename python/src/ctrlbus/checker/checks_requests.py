@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Checks of the mandatory requests: answered, with a valid length and plausible values.
 
 Each check asks well-formed requests (built with ctrlbus.messages) and reads each answer as the

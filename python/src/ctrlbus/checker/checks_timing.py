@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Checks that need real time: motion that must not happen (a frame that failed its checksum),
 motion that must stop (the motor watchdog), and answer latency.
 

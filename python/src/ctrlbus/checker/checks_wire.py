@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Checks of the wire rules: frame types, SYNC and ECHO, and what a base answers to faults
 (bad checksums, unknown commands, unsupported arguments, wrong lengths, oversize frames,
 garbage). Every request here is built byte by byte with ctrlbus.frame.encode, because most of

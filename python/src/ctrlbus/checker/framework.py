@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """What a check is, what it reports, and the loop that runs a list of them against one base.
 
 A check is a function of a `CheckContext`. It talks to the base through the context (which wraps

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The conformance checker's own master: exact bytes out, frames in, everything timed and logged.
 
 The checker does not use the Core emulator: it must send bytes a Core never sends (bad

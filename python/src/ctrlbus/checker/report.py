@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """A check run as people and CI systems read it: a text summary, JSON, and JUnit XML."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The `ctrlbus` command: one entry point, one module per subcommand.
 
 Each subcommand module defines `register(subparsers)`, which adds its parser and sets

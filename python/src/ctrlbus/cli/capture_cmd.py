@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """`ctrlbus capture`: record what one port receives in a pcap capture.
 
     ctrlbus capture --port ENDPOINT -o FILE [--direction core|base] [--duration S] [--baud N]

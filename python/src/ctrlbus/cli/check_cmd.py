@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """`ctrlbus check`: the conformance checker, run against a base on a port.
 
     ctrlbus check --port URL [--baud N] [--json FILE] [--junit FILE] [--only N,M]

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Argument helpers shared by the subcommands, so every command spells its options the same way."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """`ctrlbus config`: the binary configuration blob of GET_BASE_CONF_ADV (0x21) and its JSON form.
 
     ctrlbus config decode BLOB [-o FILE]   blob (binary or hex text; '-' = stdin) -> JSON

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """`ctrlbus core`: the Core emulator, driving a base over a serial port (or any pyserial URL).
 
     ctrlbus core --port URL [--baud N] [--json] [--rates NAME=HZ,...] [--timeout-ms N]

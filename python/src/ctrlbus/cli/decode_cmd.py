@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """`ctrlbus decode`: show what a byte stream or a capture says, frame by frame.
 
     ctrlbus decode [FILE|-] [--json] [--direction core|base] [--color auto|always|never]

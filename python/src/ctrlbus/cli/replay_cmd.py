@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """`ctrlbus replay`: play one side of a capture into a port, with the original timing.
 
     ctrlbus replay FILE --port ENDPOINT [--direction core|base] [--speed X] [--capture OUT]

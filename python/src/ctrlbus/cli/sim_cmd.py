@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """`ctrlbus sim`: serve the simulated base (a differential-drive robot in a room) on a link.
 
     ctrlbus sim --pty | --listen HOST:PORT | --port URL [--config FILE] [--room FILE]

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """`ctrlbus spy`: sit between a Core and a base, forward every byte, show the conversation.
 
     ctrlbus spy --core ENDPOINT --base ENDPOINT [--capture FILE] [--json] [--fault SPEC]...

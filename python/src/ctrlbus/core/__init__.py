@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The Core emulator: a stand-in for the SLAMWARE Core (the bus master).
 
 - `CoreSession` (ctrlbus.core.session): the protocol as a sans-IO state machine, with telemetry,

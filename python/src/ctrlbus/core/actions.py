@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Actions the Core carries out on its own: drive a distance, turn an angle (and go home, in
 ctrlbus.core.docking).
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Settings of the Core emulator: polling rates, timeouts, limits and the actions' parameters.
 
 Defaults are those of docs/protocol.md §11; every value can be changed, and each is checked when

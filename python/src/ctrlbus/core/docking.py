@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """GO_HOME: dock on the charger by following its infrared beacons.
 
 The dock has three beacons (left, main, right) and the base three probes (left, main, right);

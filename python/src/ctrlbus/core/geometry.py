@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """What the Core knows of the base's body: shape, size and where its sensors sit.
 
 It comes from GET_BASE_CONF (0x20, fixed layout) or from the binary configuration tree of

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Run a CoreSession in real time: a thread that owns the link and passes time.monotonic().
 
 The thread writes what `poll()` returns, reads the link with a short timeout and hands the bytes to

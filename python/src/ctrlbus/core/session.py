@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The Core emulator as a sans-IO session: bytes and time in, request frames out.
 
 `CoreSession` behaves as docs/protocol.md §11 describes: it repeats CONNECT_BASE until the base

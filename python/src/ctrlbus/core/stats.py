@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Link statistics of a Core session: request rate, answer latency, errors, retries.
 
 Times are the ones the session is given (never a clock read here). Latency is measured from the

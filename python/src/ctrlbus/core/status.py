@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """What `ctrlbus core` shows: a one-screen status, a one-line status, and a JSON status object.
 
 All three are built from a session's snapshot (docs/dashboard.md) and link statistics, so they

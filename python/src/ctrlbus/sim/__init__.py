@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The simulated base's world: a differential-drive robot in a 2-D room (physics, no protocol).
 
 See docs/simulator.md. The protocol side (answering Control Bus requests from this world) is

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The simulated base: the simulator's World answering the Control Bus through ctrlbus.base.
 
 `SimulatedBase` is an ordinary `ctrlbus.base.Base` application: it reads everything it reports

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Reading the simulator's JSON description files, with errors that name the file and the key.
 
 Every reader method takes the key, checks presence, type and range, and remembers the key as used;

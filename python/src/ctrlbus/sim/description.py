@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The simulated robot's description: shape, drive, sensors, battery, noise (docs/simulator.md).
 
 `load_base_description(path)` reads a JSON file; with no path it reads the packaged default,

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Plane geometry for the simulated world: points, wall segments, rays, polygons, arcs (mm, degrees)."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The simulated room: walls, cliff areas, the charging dock and its IR beacons (docs/simulator.md).
 
 World frame: millimetres, x to the right, y up, angles anticlockwise from +x. `load_room(path)`

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Build a simulated base from its files and serve it on a link: what `ctrlbus sim` and the demo
 share.
 

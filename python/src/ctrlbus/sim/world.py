@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The simulated robot in its room: physics only, no protocol, no clock.
 
 `World.step(dt_s)` advances simulated time; the caller decides how simulated time relates to the

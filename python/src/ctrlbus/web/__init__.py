@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The browser dashboard: an optional layer over the Core emulator (the core never imports it).
 
 - `ctrlbus.web.source`: the `DashboardSource` protocol the Core emulator implements.

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Control messages from the dashboard page: strict parsing into typed commands.
 
 The page sends small JSON objects over the WebSocket. Anything that is not exactly one of the

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Where the dashboard listens and who may use it; checked before anything starts.
 
 No aiohttp here, so the CLI can validate its options (and refuse an unsafe address) without the

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The dashboard snapshot schema (docs/dashboard.md), as a checker.
 
 `check_snapshot(snapshot)` lists every way a snapshot departs from the schema, so the tests of

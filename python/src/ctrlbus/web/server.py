@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The dashboard's HTTP + WebSocket server, running in its own thread and event loop.
 
 It serves the page, pushes `{"type": "snapshot", ...}` messages to every open WebSocket at

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """What the dashboard needs from the program it shows: the `DashboardSource` protocol.
 
 The Core emulator implements it (structurally: it never imports this module, because the core

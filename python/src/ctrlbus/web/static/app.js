@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 // ctrlbus dashboard page: plain JavaScript, no build step, no network access beyond its own server.
 // It renders the snapshots the server pushes (schema: docs/dashboard.md) and sends control
 // messages (velocity, estop, release, go_home, external_command) over the same WebSocket.
