@@ -7,14 +7,16 @@ BUILD := build
 JOBS  ?= 2
 DEMO_ARGS ?=
 
-.PHONY: all setup c-build firmware c-test c-test-asan lint py-test test demo size bench fuzz fuzz-smoke clean
+.PHONY: all setup c-build firmware c-test c-test-asan lint py-test test demo size bench fuzz fuzz-smoke clean \
+        consumers arduino release
 
 all: test
 
 setup:
 	@scripts/setup.sh
 
-# Host build of the C library, tests and examples (warnings are errors).
+# Host build of the C library, tests and examples (warnings are errors). A Debug build, for our
+# tests: firmware links a Release one (docs/c-library.md).
 c-build: setup
 	@cmake -S c -B $(BUILD)/c -G Ninja -DCMAKE_BUILD_TYPE=Debug >/dev/null
 	@cmake --build $(BUILD)/c -j $(JOBS)
@@ -66,6 +68,29 @@ fuzz: setup
 # Each libFuzzer target for 30 s (part of `make test`).
 fuzz-smoke: setup
 	@scripts/fuzz.sh 30
+
+# The C library as other projects consume it: CMake add_subdirectory, FetchContent, find_package,
+# pkg-config, and a Cortex-M0+ cross build (python/tests/test_c_consumers.py, also run by py-test).
+consumers: setup
+	@cd python && ../$(VENV)/bin/pytest -q tests/test_c_consumers.py
+
+# Release artefacts in $(DIST): the Arduino library zip, the PlatformIO package, the Python wheel
+# and sdist, and a source tarball of what is committed at HEAD (git archive). The version is the
+# one in c/include/ctrlbus/ctrlbus.h; python/tests/test_release.py checks every artefact.
+DIST ?= dist
+arduino: setup
+	@$(PY) scripts/arduino_zip.py $(DIST)
+
+release: setup
+	@version=$$($(PY) scripts/ctrlbus_version.py) && mkdir -p $(DIST) && \
+	  rm -f $(DIST)/ctrlbus-*$$version[.-]* && mkdir -p $(BUILD) && \
+	  $(PY) scripts/arduino_zip.py $(DIST) >/dev/null && \
+	  PLATFORMIO_CORE_DIR=$(CURDIR)/$(BUILD)/platformio PLATFORMIO_SETTING_ENABLE_TELEMETRY=No \
+	    $(PY) scripts/pio_pack.py -o $(DIST)/ctrlbus-platformio-$$version.tar.gz . >/dev/null && \
+	  { $(PY) -m build --outdir $(DIST) python >$(BUILD)/python-build.log 2>&1 || \
+	    { cat $(BUILD)/python-build.log; exit 1; }; } && \
+	  git archive --format=tar.gz --prefix=ctrlbus-$$version/ -o $(DIST)/ctrlbus-$$version-source.tar.gz HEAD && \
+	  ls -1 $(DIST)/ctrlbus-*$$version[.-]*
 
 clean:
 	rm -rf $(BUILD)

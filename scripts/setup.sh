@@ -32,9 +32,18 @@ if [ ! -x .venv/bin/python ]; then
   "$PY" -m venv .venv
 fi
 stamp=.venv/.ctrlbus-installed
-if [ ! -f "$stamp" ] || [ python/pyproject.toml -nt "$stamp" ]; then
+# The stamp holds the version installed: the package's version is read from the C header when it
+# is installed (python/setup.py), so a new version there means installing again.
+version=$("$PY" scripts/ctrlbus_version.py)
+if [ ! -f "$stamp" ] || [ python/pyproject.toml -nt "$stamp" ] || [ "$(cat "$stamp")" != "$version" ]; then
   echo "setup: installing the ctrlbus Python package and its test tools into .venv"
   .venv/bin/python -m pip install -q --upgrade pip
   .venv/bin/python -m pip install -q -e "python[dev,web,bench]"
-  touch "$stamp"
+  echo "$version" > "$stamp"
+fi
+release_stamp=.venv/.ctrlbus-release-tools
+if [ ! -f "$release_stamp" ] || [ scripts/requirements-release.txt -nt "$release_stamp" ]; then
+  echo "setup: installing the release tools (build, platformio) into .venv"
+  .venv/bin/python -m pip install -q -r scripts/requirements-release.txt
+  touch "$release_stamp"
 fi
