@@ -41,9 +41,9 @@ if [ ! -f "$stamp" ] || [ python/pyproject.toml -nt "$stamp" ] || [ "$(cat "$sta
   .venv/bin/python -m pip install -q -e "python[dev,web,bench]"
   echo "$version" > "$stamp"
 fi
-release_stamp=.venv/.ctrlbus-release-tools
-if [ ! -f "$release_stamp" ] || [ scripts/requirements-release.txt -nt "$release_stamp" ]; then
-  echo "setup: installing the release tools (build, platformio) into .venv"
-  .venv/bin/python -m pip install -q -r scripts/requirements-release.txt
-  touch "$release_stamp"
+packaging_stamp=.venv/.ctrlbus-packaging-tools
+if [ ! -f "$packaging_stamp" ] || [ scripts/requirements-packaging.txt -nt "$packaging_stamp" ]; then
+  echo "setup: installing the packaging tools (build, platformio, kconfiglib) into .venv"
+  .venv/bin/python -m pip install -q -r scripts/requirements-packaging.txt
+  touch "$packaging_stamp"
 fi

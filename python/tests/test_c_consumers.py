@@ -15,43 +15,18 @@ from __future__ import annotations
 import json
 import os
 import re
-import shutil
 import subprocess
 from pathlib import Path
 
 import pytest
+from packaging_support import REPO, header_version, run, tool
 
-REPO = Path(__file__).resolve().parents[2]
 CONSUMER = REPO / "c" / "tests" / "consumers"
 TOOLCHAIN_M0PLUS = REPO / "c" / "cmake" / "cortex-m0plus.cmake"
-HEADER = REPO / "c" / "include" / "ctrlbus" / "ctrlbus.h"
 # A consumer that asks for Python would fail to configure with this (find_package REQUIRED).
 NO_PYTHON = "-DCMAKE_DISABLE_FIND_PACKAGE_Python3=ON"
 # newlib's stubs stand in for a board's start-up code, so a Cortex-M0+ program links.
 M0PLUS_LINK = "-DCMAKE_EXE_LINKER_FLAGS=--specs=nano.specs --specs=nosys.specs"
-
-
-def header_version() -> str:
-    text = HEADER.read_text()
-    parts = [
-        re.search(rf"^#define CTRLBUS_VERSION_{p} +(\d+)", text, re.M) for p in ("MAJOR", "MINOR", "PATCH")
-    ]
-    assert all(parts), f"no CTRLBUS_VERSION_* macros in {HEADER}"
-    return ".".join(m.group(1) for m in parts if m)
-
-
-def tool(name: str) -> str:
-    path = shutil.which(name)
-    assert path, f"{name} is not installed (scripts/setup.sh installs it)"
-    return path
-
-
-def run(*args: str | Path, cwd: Path | None = None, env: dict[str, str] | None = None) -> str:
-    result = subprocess.run(
-        ["nice", *map(str, args)], cwd=cwd, env=env, capture_output=True, text=True, timeout=300
-    )
-    assert result.returncode == 0, f"{' '.join(map(str, args))} failed:\n{result.stdout}\n{result.stderr}"
-    return result.stdout + result.stderr
 
 
 def configure_and_build(build: Path, source: Path, *options: str) -> str:
