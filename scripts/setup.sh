@@ -13,6 +13,7 @@ APT_PACKAGES=(
   tshark                                                       # Wireshark dissector test
   chromium                                                     # dashboard browser test
   socat
+  git pkg-config gcc-avr avr-libc                              # packaging tests (release, consumers)
 )
 
 missing=()
