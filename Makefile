@@ -7,8 +7,7 @@ BUILD := build
 JOBS  ?= 2
 DEMO_ARGS ?=
 
-.PHONY: all setup c-build firmware c-test c-test-asan lint py-test test demo size bench fuzz fuzz-smoke clean \
-        consumers arduino release
+.PHONY: all setup c-build firmware c-test c-test-asan lint py-test test demo size bench fuzz fuzz-smoke clean
 
 all: test
 
@@ -68,6 +67,8 @@ fuzz: setup
 # Each libFuzzer target for 30 s (part of `make test`).
 fuzz-smoke: setup
 	@scripts/fuzz.sh 30
+
+.PHONY: consumers arduino release
 
 # The C library as other projects consume it: CMake add_subdirectory, FetchContent, find_package,
 # pkg-config, and a Cortex-M0+ cross build (python/tests/test_c_consumers.py, also run by py-test).

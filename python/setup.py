@@ -16,7 +16,8 @@ HEADER = HERE.parent / "c" / "include" / "ctrlbus" / "ctrlbus.h"
 def version() -> str:
     if HEADER.exists():
         text = HEADER.read_text()
-        parts = [re.search(rf"^#define CTRLBUS_VERSION_{p} +(\d+)", text, re.M) for p in ("MAJOR", "MINOR", "PATCH")]
+        names = ("MAJOR", "MINOR", "PATCH")
+        parts = [re.search(rf"^#define CTRLBUS_VERSION_{name} +(\d+)", text, re.M) for name in names]
         if not all(parts):
             raise SystemExit(f"setup.py: no CTRLBUS_VERSION_MAJOR/MINOR/PATCH in {HEADER}")
         return ".".join(m.group(1) for m in parts if m)
