@@ -12,7 +12,7 @@ APT_PACKAGES=(
   valgrind                                                     # callgrind benchmarks
   tshark                                                       # Wireshark dissector test
   sigrok-cli                                                   # sigrok decoder test (tools/sigrok)
-  graphviz mscgen                                              # make pictures (docs/diagrams)
+  graphviz mscgen fonts-dejavu-core                            # make pictures (docs/diagrams)
   chromium                                                     # dashboard browser test
   socat
 )
