@@ -19,21 +19,16 @@ import os
 import re
 import shutil
 import subprocess
-import threading
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+from test_spy import Session
 
 from ctrlbus.annotate import FrameNote, RejectReason, Role, format_fields
-from ctrlbus.base import BaseRunner
 from ctrlbus.capture import CaptureWriter, Direction, read_capture
 from ctrlbus.cli.decode_cmd import decode_bytes
-from ctrlbus.core import ConnectionState, CoreRunner, CoreSession
-from ctrlbus.link import Link, link_pair
 from ctrlbus.messages import Cmd, GetBaseConfAdvAnswer
-from ctrlbus.sim.server import SimSettings, build_simulated_stack
 
 SIGROK_CLI = shutil.which("sigrok-cli")
 ROOT = Path(__file__).resolve().parents[2]
@@ -70,54 +65,15 @@ class Record:
     time: float
 
 
-class CaptureOnCoreSide:
-    """The Core's link, recording what the Core writes (core→base) and reads (base→core)."""
-
-    def __init__(self, inner: Link) -> None:
-        self.inner = inner
-        self.records: list[Record] = []
-        self._lock = threading.Lock()
-
-    @property
-    def name(self) -> str:
-        return self.inner.name
-
-    def read(self, timeout: float) -> bytes:
-        data = self.inner.read(timeout)
-        if data:
-            with self._lock:
-                self.records.append(Record(B, data, time.time()))
-        return data
-
-    def write(self, data: bytes) -> None:
-        with self._lock:
-            self.records.append(Record(C, data, time.time()))
-        self.inner.write(data)
-
-    def close(self) -> None:
-        self.inner.close()
-
-
 def record_a_conversation() -> list[Record]:
-    """Our Core emulator and the simulated base: connection, a few polling rounds, disconnect."""
-    core_end, base_end = link_pair(("core", "base"))
-    link = CaptureOnCoreSide(core_end)
-    _, stack = build_simulated_stack(SimSettings(seed=3))
-    base = BaseRunner(stack, base_end)
-    session = CoreSession()
-    core = CoreRunner(session, link)
-    base.start()
-    core.start()
-    deadline = time.monotonic() + LIMIT_S
+    """Our Core emulator and the simulated base through the spy (tests/test_spy.py): connection,
+    a few polling rounds, and the disconnect when the Core is stopped."""
+    session = Session()
     try:
-        while not (session.state is ConnectionState.CONNECTED and len(link.records) >= 60):
-            assert time.monotonic() < deadline, "the Core did not connect and poll"
-            time.sleep(0.02)
+        session.run_until_connected_and(requests=30)
     finally:
-        core.stop()  # its CORE_DISCONNECT is answered before the base stops
-        time.sleep(0.2)
-        base.stop()
-    return list(link.records)
+        session.stop()
+    return [Record(chunk.direction, chunk.data, chunk.time) for chunk in session.chunks if chunk.data]
 
 
 def flip_bits(records: list[Record], flips: list[tuple[Direction, int, int]]) -> list[Record]:

@@ -20,11 +20,12 @@ import sys
 import threading
 import time
 import tty
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
+from test_spy import LIMIT_S, wait_until
 
 from ctrlbus.annotate import FrameNote, Role
 from ctrlbus.base import BaseRunner
@@ -44,16 +45,6 @@ from ctrlbus.tap import TapMerger
 C = Direction.CORE_TO_BASE
 B = Direction.BASE_TO_CORE
 CTRLBUS = [sys.executable, "-m", "ctrlbus"]
-LIMIT_S = 15.0  # generous bound for waits on a loaded machine; nothing asserts a duration
-
-
-def wait_until(condition: Callable[[], bool], limit_s: float = LIMIT_S) -> bool:
-    deadline = time.monotonic() + limit_s
-    while not condition():
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.02)
-    return True
 
 
 class Splitter:
