@@ -19,18 +19,21 @@ import os
 import re
 import shutil
 import subprocess
+import sys
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import pytest
 from test_spy import Session
 
-from ctrlbus.annotate import FrameNote, RejectReason, Role, format_fields
+from ctrlbus.annotate import format_fields
 from ctrlbus.capture import CaptureWriter, Direction, read_capture
-from ctrlbus.cli.decode_cmd import decode_bytes
-from ctrlbus.messages import Cmd, GetBaseConfAdvAnswer
+from ctrlbus.frame import StreamDecoder
+from ctrlbus.messages import Cmd, GetBaseConfAdvAnswer, from_fields
 
 SIGROK_CLI = shutil.which("sigrok-cli")
+CTRLBUS = [sys.executable, "-m", "ctrlbus"]
 ROOT = Path(__file__).resolve().parents[2]
 DECODERS = ROOT / "tools" / "sigrok"
 FRAME_VECTORS = json.loads((ROOT / "vectors" / "frames.json").read_text(encoding="utf-8"))["frames"]
@@ -124,11 +127,10 @@ def draw_lines(records: list[Record]) -> bytes:
     return bytes(samples)
 
 
-def write_capture(path: Path, records: list[Record]) -> bytes:
+def write_capture(path: Path, records: list[Record]) -> None:
     with CaptureWriter.create(path) as writer:
         for record in records:
             writer.write(record.direction, record.data, 1_700_000_000.0 + record.time)
-    return path.read_bytes()
 
 
 # --- the two decoders ----------------------------------------------------------------------------
@@ -178,41 +180,57 @@ def error_kind(text: str) -> str:
     raise AssertionError(f"unexpected error annotation {text!r}")
 
 
-def frame_text(note: FrameNote) -> str:
-    """A frame as our decoder writes it, made from `ctrlbus decode`'s annotation."""
-    if note.role is Role.REQUEST:
-        label = note.name
-        if label is None:
-            payload = note.frame.payload
-            if note.frame.cmd != Cmd.CTRL_BUS:
-                label = f"0x{note.frame.cmd:02X}"
+def frame_text(record: dict[str, Any]) -> str:
+    """A frame as our decoder writes it, made from a `ctrlbus decode --json` frame record."""
+    payload = bytes.fromhex(record["hex"])[(3 if record["long"] else 2) + 1 : -1]
+    label: str
+    if record["role"] == "request":
+        label = record["name"]
+        if record["name"] is None:
+            if record["cmd"] != Cmd.CTRL_BUS:
+                label = f"0x{record['cmd']:02X}"
             else:
                 label = f"CTRL_BUS 0x{payload[0]:02X}" if payload else "CTRL_BUS"
+        answered = None
     else:
-        label = (note.name or f"0x{note.frame.cmd:02X}") + (f" to {note.to}" if note.to is not None else "")
+        label = (record["name"] or f"0x{record['cmd']:02X}") + (f" to {record['to']}" if record["to"] else "")
+        answered = record["to"] or "SYNC"  # answers that need no request read the same for any
     text = ""
-    if note.message is not None:
-        text = format_fields(note.message)
-        if isinstance(note.message, GetBaseConfAdvAnswer):
+    if record["fields"] is not None:
+        message = from_fields(record["name"], record["fields"], to=answered)
+        text = format_fields(message)
+        if isinstance(message, GetBaseConfAdvAnswer):
             # Our decoder shows the blob; the configuration tree inside is left to `ctrlbus decode`.
             text = re.split(r", (?:config |not a configuration)", text)[0]
-    return label + (f": {text}" if text else "") + (f" [{note.error}]" if note.error else "")
+    error = f" [{record['error']}]" if record["error"] else ""
+    return label + (f": {text}" if text else "") + error
 
 
-def decode_annotations(capture: bytes) -> dict[Direction, list[str]]:
-    """What `ctrlbus decode` says per line, in the same words (failures raised as events only:
-    silent discards and the end-of-input flush are not events)."""
+def decode_annotations(capture: Path) -> dict[Direction, list[str]]:
+    """What `ctrlbus decode --json` says per line, in the same words (failures raised as events
+    only: silent discards and the end-of-input flush are not events)."""
+    result = subprocess.run(
+        [*CTRLBUS, "decode", "--json", "--timeout-ms", str(TIMEOUT_MS), str(capture)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert result.returncode == 0, result.stderr
     out: dict[Direction, list[str]] = {C: [], B: []}
-    for entry in decode_bytes(capture, timeout=TIMEOUT_MS / 1000).entries:
-        assert entry.direction is not None
-        if isinstance(entry, FrameNote):
-            out[entry.direction].append(frame_text(entry))
-        elif entry.reason is RejectReason.CHECKSUM_ERROR:
-            out[entry.direction].append(
-                f"checksum_error 0x{entry.found_checksum:02X} 0x{entry.expected_checksum:02X}"
+    for line in result.stdout.splitlines():
+        record = json.loads(line)
+        if record["kind"] not in ("frame", "rejected"):
+            continue
+        direction = C if record["direction"] == "core" else B
+        if record["kind"] == "frame":
+            out[direction].append(frame_text(record))
+        elif record["reason"] == "checksum_error":
+            out[direction].append(
+                f"checksum_error 0x{record['found_checksum']:02X} 0x{record['expected_checksum']:02X}"
             )
-        elif entry.reason not in (RejectReason.SILENT, RejectReason.INCOMPLETE):
-            out[entry.direction].append(str(entry.reason))
+        elif record["reason"] not in ("silent", "incomplete"):
+            out[direction].append(record["reason"])
     return out
 
 
@@ -228,13 +246,9 @@ def assert_same(sigrok: dict[Direction, list[str]], ours: dict[Direction, list[s
 
 def test_sigrok_decoder_matches_ctrlbus_decode_on_a_noisy_recording(tmp_path: Path) -> None:
     clean = record_a_conversation()
-    clean_notes = [
-        e
-        for e in decode_bytes(write_capture(tmp_path / "clean.pcap", clean)).entries
-        if isinstance(e, FrameNote)
-    ]
-    core_frames = [note for note in clean_notes if note.direction is C]
-    base_frames = [note for note in clean_notes if note.direction is B]
+    core_frames, base_frames = (
+        StreamDecoder().feed(b"".join(r.data for r in clean if r.direction is side)) for side in (C, B)
+    )
     # Bit errors: in a request's payload, in an answer's payload (checksum errors), and in a
     # request's flag byte (its bytes become garbage).
     flips = [
@@ -243,14 +257,15 @@ def test_sigrok_decoder_matches_ctrlbus_decode_on_a_noisy_recording(tmp_path: Pa
         (C, core_frames[12].offset, 0x01),
     ]
     damaged = redraw_times(flip_bits(clean, flips))
-    capture = write_capture(tmp_path / "noisy.pcap", damaged)
+    capture_path = tmp_path / "noisy.pcap"
+    write_capture(capture_path, damaged)
     logic = tmp_path / "noisy.bin"
     logic.write_bytes(draw_lines(damaged))
     assert [(r.direction, r.data) for r in read_capture(tmp_path / "noisy.pcap")] == [
         (r.direction, r.data) for r in damaged
     ]
 
-    ours = decode_annotations(capture)
+    ours = decode_annotations(capture_path)
     sigrok = sigrok_annotations(logic)
     assert_same(sigrok, ours)
     # The recording holds what the test is about.
@@ -283,10 +298,11 @@ def test_sigrok_decoder_matches_ctrlbus_decode_on_every_frame_vector(tmp_path: P
     unknown = bytes([0x10, 0x02, 0xF8, 0x77, 0x10 ^ 0x02 ^ 0xF8 ^ 0x77])
     records += [Record(C, unknown, 0.0), Record(B, bytes.fromhex("50 01 00 02 53"), 0.0)]
     drawn = redraw_times(records)
-    capture = write_capture(tmp_path / "vectors.pcap", drawn)
+    capture_path = tmp_path / "vectors.pcap"
+    write_capture(capture_path, drawn)
     logic = tmp_path / "vectors.bin"
     logic.write_bytes(draw_lines(drawn))
-    ours = decode_annotations(capture)
+    ours = decode_annotations(capture_path)
     sigrok = sigrok_annotations(logic)
     assert_same(sigrok, ours)
     assert len(sigrok[C]) == len([r for r in records if r.direction is C])
