@@ -43,8 +43,23 @@ lint: setup
 py-test: c-build firmware
 	@cd python && ../$(VENV)/bin/pytest -q
 
-test: c-test c-test-asan lint py-test fuzz-smoke
+test: c-test c-test-asan lint py-test fuzz-smoke pictures
 	@echo "make test: all suites passed"
+
+# The pictures in docs/img drawn from their text sources in docs/diagrams (Graphviz .dot, mscgen
+# .msc). Always drawn (so `make test` checks that they build); a picture is copied into docs/img
+# only when it changed. The dashboard screenshot comes from tests/test_dashboard_browser.py.
+.PHONY: pictures
+pictures: setup
+	@mkdir -p $(BUILD)/pictures
+	@for source in docs/diagrams/*.dot docs/diagrams/*.msc; do \
+	  name=$$(basename "$${source%.*}"); out=$(BUILD)/pictures/$$name.png; \
+	  case "$$source" in \
+	    *.dot) dot -Tpng -o "$$out" "$$source" ;; \
+	    *.msc) mscgen -T png -F "DejaVu Sans:size=10" -o "$$out" "$$source" ;; \
+	  esac || exit 1; \
+	  cmp -s "$$out" docs/img/$$name.png || { cp "$$out" docs/img/$$name.png; echo "pictures: docs/img/$$name.png updated"; }; \
+	done
 
 demo: c-build firmware
 	@$(PY) -m ctrlbus.demo $(DEMO_ARGS)

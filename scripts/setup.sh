@@ -11,6 +11,8 @@ APT_PACKAGES=(
   clang libclang-rt-14-dev                                     # libFuzzer + sanitizers
   valgrind                                                     # callgrind benchmarks
   tshark                                                       # Wireshark dissector test
+  sigrok-cli                                                   # sigrok decoder test (tools/sigrok)
+  graphviz mscgen fonts-dejavu-core                            # make pictures (docs/diagrams)
   chromium                                                     # dashboard browser test
   socat
   git pkg-config gcc-avr avr-libc                              # packaging tests (release, consumers)

@@ -2,7 +2,9 @@
 """Acceptance: the whole demo (simulated base on a pty, Core emulator, dashboard) in a real browser.
 
 Headless Chromium is Debian's /usr/bin/chromium (scripts/setup.sh installs it), driven by
-Playwright; nothing is downloaded. Screenshots are saved in python/test-artifacts/.
+Playwright; nothing is downloaded. Screenshots are saved in python/test-artifacts/; the one of
+the robot driving forward also in docs/img/dashboard.png (docs/dashboard.md shows it), so that the
+picture in the docs is retaken on every run and never goes stale.
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ from ctrlbus.web.schema import check_snapshot
 PYTHON_DIR = Path(__file__).resolve().parents[1]
 REPO_ROOT = PYTHON_DIR.parent
 ARTIFACTS = PYTHON_DIR / "test-artifacts"
+DOCS_SCREENSHOT = REPO_ROOT / "docs" / "img" / "dashboard.png"
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = [
     "--headless",
@@ -234,6 +237,7 @@ def test_arrow_up_drives_forward_and_the_link_panel_counts(demo: Demo, page: Any
             timeout=30_000,
         )
         screenshot(page, "dashboard-driving-forward.png")
+        page.screenshot(path=str(DOCS_SCREENSHOT))
     finally:
         page.keyboard.up("ArrowUp")
     x1, y1, theta1 = pose(page)

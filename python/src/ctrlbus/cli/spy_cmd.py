@@ -106,7 +106,8 @@ class Spy:
     transform if asked, queue, write. Queueing before writing keeps cause before effect: an answer
     is never queued before the request that it answers.
 
-    A link that fails stops both directions; `failure` then says why.
+    A link that fails stops both directions; `failure` then says why. With `forward=False` nothing
+    is written: both links only listen (a passive tap, `ctrlbus capture --tap`).
     """
 
     def __init__(
@@ -116,11 +117,13 @@ class Spy:
         *,
         transforms: Mapping[Direction, ByteTransform] | None = None,
         clock: Callable[[], float] = time.time,
+        forward: bool = True,
     ) -> None:
         self.core = core
         self.base = base
         self._transforms = dict(transforms or {})
         self._clock = clock
+        self._forward_bytes = forward
         self._queue: queue.Queue[Chunk] = queue.Queue()
         self.stop_event = threading.Event()
         self.failure: BaseException | None = None
@@ -154,7 +157,8 @@ class Spy:
                     if data:
                         # Queued before it is written: the answer it causes cannot be queued first.
                         self._queue.put(Chunk(direction, data, self._clock(), data))
-                        target.write(data)
+                        if self._forward_bytes:
+                            target.write(data)
                         self.forwarded[direction] += len(data)
                 return
             while not self.stop_event.is_set():
@@ -165,7 +169,7 @@ class Spy:
                 out = transform(data, now)
                 if data or out:
                     self._queue.put(Chunk(direction, out, now, data))
-                if out:
+                if out and self._forward_bytes:
                     target.write(out)
                     self.forwarded[direction] += len(out)
         except Exception as exc:  # reported through `failure`, never lost in a thread
@@ -223,7 +227,9 @@ def register(subparsers: Any) -> None:
     parser.set_defaults(func=run)
 
 
-class _Printer:
+class Printer:
+    """Prints annotations as they come: one text line or one JSON object per line."""
+
     def __init__(self, *, as_json: bool, color: bool, time_origin: float) -> None:
         self.as_json = as_json
         self.color = color
@@ -237,7 +243,7 @@ class _Printer:
         self.line(json.dumps(record) if self.as_json else text)
 
 
-def _open_sides(core_spec: str, base_spec: str, baud: int) -> tuple[Link, Link]:
+def open_sides(core_spec: str, base_spec: str, baud: int) -> tuple[Link, Link]:
     core = open_endpoint(core_spec, baud)
     try:
         base = open_endpoint(base_spec, baud)
@@ -252,36 +258,11 @@ def run(args: argparse.Namespace) -> int:
     duration = None if args.duration is None else positive_number("--duration", args.duration)
     transforms = fault_transforms(args.fault)
     annotator = Annotator(timeout=timeout, max_frame=max_frame)
-    core, base = _open_sides(args.core, args.base, args.baud)
-    capture: CaptureWriter | None = None
+    core, base = open_sides(args.core, args.base, args.baud)
     try:
-        if args.capture is not None:
-            try:
-                capture = CaptureWriter.create(args.capture)
-            except OSError as exc:
-                raise UsageError(f"cannot write {args.capture}: {exc.strerror or exc}") from None
-        started = time.time()
-        printer = _Printer(as_json=args.json, color=use_color(args.color), time_origin=started)
-        for side, link in (("core", core), ("base", base)):
-            address = endpoint_address(link)
-            printer.record({"kind": "endpoint", "side": side, "address": address}, f"{side}: {address}")
         spy = Spy(core, base, transforms=transforms)
-        deadline = None if duration is None else time.monotonic() + duration
-        with stop_on_signals(spy.stop_event):
-            spy.start()
-            try:
-                _watch(spy, annotator, capture, printer, deadline)
-            finally:
-                spy.stop()
-        # What arrived between the last look and the stop is still shown and recorded.
-        _show(spy.chunks(0.0), annotator, capture, printer)
-        for entry in annotator.finish():
-            printer.record(
-                entry.to_json(), format_annotation(entry, color=printer.color, time_origin=started)
-            )
-        for direction in annotator.streams:
-            stats = annotator.stats(direction)
-            printer.record(summary_json(direction, stats), summary_text(direction, stats))
+        printer = Printer(as_json=args.json, color=use_color(args.color), time_origin=time.time())
+        run_session(spy, annotator, printer, capture_path=args.capture, duration=duration)
         for direction, injected in sorted(transforms.items()):
             counters = injected.model.counters.as_dict()
             text = ", ".join(f"{name} {value}" for name, value in counters.items() if value)
@@ -289,28 +270,75 @@ def run(args: argparse.Namespace) -> int:
                 {"kind": "faults", "direction": sender_name(direction), "counters": counters},
                 f"# faults injected {direction_label(direction)}: {text or 'none'}",
             )
-        if spy.failure is not None:
-            failure = spy.failure
-            if isinstance(failure, CtrlbusError):
-                raise failure
-            raise LinkError(f"forwarding failed: {failure}")
+        raise_failure(spy)
     finally:
-        if capture is not None:
-            capture.close()
         core.close()
         base.close()
     return 0
 
 
-def _watch(
-    spy: Spy, annotator: Annotator, capture: CaptureWriter | None, printer: _Printer, deadline: float | None
+def run_session(
+    spy: Spy, annotator: Annotator, printer: Printer, *, capture_path: str | None, duration: float | None
+) -> None:
+    """Print the addresses of both sides, run `spy` until Ctrl-C, `duration` or a failed link,
+    showing (and recording in `capture_path`) every chunk, then report the end. The links stay
+    open; `raise_failure` tells whether one failed."""
+    capture: CaptureWriter | None = None
+    if capture_path is not None:
+        try:
+            capture = CaptureWriter.create(capture_path)
+        except OSError as exc:
+            raise UsageError(f"cannot write {capture_path}: {exc.strerror or exc}") from None
+    try:
+        for side, link in (("core", spy.core), ("base", spy.base)):
+            address = endpoint_address(link)
+            printer.record({"kind": "endpoint", "side": side, "address": address}, f"{side}: {address}")
+        deadline = None if duration is None else time.monotonic() + duration
+        with stop_on_signals(spy.stop_event):
+            spy.start()
+            try:
+                watch(spy, annotator, capture, printer, deadline)
+            finally:
+                spy.stop()
+        report_end(spy, annotator, capture, printer)
+    finally:
+        if capture is not None:
+            capture.close()
+
+
+def raise_failure(spy: Spy) -> None:
+    """Raise what stopped `spy`, if a link failed (a CtrlbusError as it is, else a LinkError)."""
+    failure = spy.failure
+    if failure is None:
+        return
+    if isinstance(failure, CtrlbusError):
+        raise failure
+    raise LinkError(f"forwarding failed: {failure}")
+
+
+def report_end(spy: Spy, annotator: Annotator, capture: CaptureWriter | None, printer: Printer) -> None:
+    """After `spy` stopped: show and record what it still holds, what the end of the input
+    settles, and each direction's decoder counters."""
+    # What arrived between the last look and the stop is still shown and recorded.
+    show_chunks(spy.chunks(0.0), annotator, capture, printer)
+    for entry in annotator.finish():
+        printer.record(
+            entry.to_json(), format_annotation(entry, color=printer.color, time_origin=printer.time_origin)
+        )
+    for direction in annotator.streams:
+        stats = annotator.stats(direction)
+        printer.record(summary_json(direction, stats), summary_text(direction, stats))
+
+
+def watch(
+    spy: Spy, annotator: Annotator, capture: CaptureWriter | None, printer: Printer, deadline: float | None
 ) -> None:
     while not spy.stop_event.is_set():
         if deadline is not None and time.monotonic() >= deadline:
             return
         chunks = spy.chunks(IDLE_S)
         if chunks:
-            _show(chunks, annotator, capture, printer)
+            show_chunks(chunks, annotator, capture, printer)
         else:
             for entry in annotator.idle(time.time()):
                 printer.record(
@@ -319,8 +347,8 @@ def _watch(
                 )
 
 
-def _show(
-    chunks: Sequence[Chunk], annotator: Annotator, capture: CaptureWriter | None, printer: _Printer
+def show_chunks(
+    chunks: Sequence[Chunk], annotator: Annotator, capture: CaptureWriter | None, printer: Printer
 ) -> None:
     for chunk in chunks:
         if capture is not None and chunk.data:
