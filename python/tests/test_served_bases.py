@@ -18,7 +18,7 @@ import pytest
 from base_harness import FramePeer
 from served_bases import TCP_BASE_NAMES, ServedBase, build_firmware, start_base
 
-from ctrlbus.frame import Frame
+from ctrlbus.frame import Frame, encode
 
 CTRL_BUS, OK = 0xF8, 0x02
 GET_BASE_STATUS = bytes((0x30,))
@@ -80,3 +80,18 @@ def test_a_turn_of_more_than_half_a_turn_reads_the_same_in_c_and_python(served: 
     for name, dtheta in turns.items():
         assert 200.0 < dtheta < 360.0, f"{name} reported a turn of {dtheta:.1f} degrees: {turns}"
     assert abs(turns["posix_base"] - turns["ctrlbus-sim"]) < 60.0, turns
+
+
+@pytest.mark.parametrize("name", TCP_BASE_NAMES)
+def test_a_new_connection_forgets_the_old_half_frame(served: list[ServedBase], name: str) -> None:
+    # Issue 17, finding 6. With the inter-byte timeout off, a half-received frame would wait
+    # forever and swallow the next connection's first request.
+    base = start(served, name, "--frame-timeout-ms", "0")
+    first = base.connect()
+    ok_payload(first.request(CTRL_BUS, GET_BASE_STATUS))
+    first.send(encode(CTRL_BUS, GET_BASE_MOTOR_DATA)[:2])  # a frame cut short: header only
+    time.sleep(0.1)  # the base has read it
+    second = base.connect()
+    time.sleep(0.1)  # the base has taken the new connection before the request comes
+    answer = second.request(CTRL_BUS, GET_BASE_STATUS)
+    assert answer.cmd == OK and len(answer.payload) == 2, answer

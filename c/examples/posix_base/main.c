@@ -184,9 +184,13 @@ int main(int argc, char **argv)
             status = fail(error);
             break;
         }
-        if ((events & POSIX_LINK_CONNECTED) && options.verbose) {
-            (void)fprintf(stderr, "posix_base: connection %llu is now the link\n",
-                          (unsigned long long)output.link.connections);
+        if (events & POSIX_LINK_CONNECTED) {
+            /* A new connection is a new line: nothing of the old one's half frame carries over. */
+            base_glue_new_line(&glue);
+            if (options.verbose) {
+                (void)fprintf(stderr, "posix_base: connection %llu is now the link\n",
+                              (unsigned long long)output.link.connections);
+            }
         }
         uint8_t received[BASE_GLUE_RX_RING_SIZE / 2u]; /* the ring holds one byte less than its size */
         long got = 0;

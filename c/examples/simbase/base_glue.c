@@ -170,6 +170,11 @@ void base_glue_feed(base_glue_t *glue, const uint8_t *data, size_t size)
     (void)ctrlbus_base_feed(&glue->base, data, size);
 }
 
+void base_glue_new_line(base_glue_t *glue)
+{
+    ctrlbus_base_reset_line(&glue->base);
+}
+
 void base_glue_poll(base_glue_t *glue, uint32_t now_ms)
 {
     /* The robot moves up to now before the stack answers (or its watchdog stops it). */

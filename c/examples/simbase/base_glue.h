@@ -75,6 +75,10 @@ int32_t base_glue_init(base_glue_t *glue, const base_glue_options_t *options, ui
  * Cost: O(size). */
 void base_glue_feed(base_glue_t *glue, const uint8_t *data, size_t size);
 
+/* The host's link has a new peer (a new TCP connection): forget the bytes and the half-received
+ * frame of the old one. Main loop only. Cost: O(1). */
+void base_glue_new_line(base_glue_t *glue);
+
 /* Parse and answer what was fed, run the watchdog and health checks, and step the simulation up
  * to now_ms. Main loop only. Cost: O(bytes fed since the last call) plus the simulation steps. */
 void base_glue_poll(base_glue_t *glue, uint32_t now_ms);
