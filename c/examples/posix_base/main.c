@@ -165,6 +165,8 @@ int main(int argc, char **argv)
         glue_options.binary_config_size = (uint16_t)binary_config_size;
     }
     glue_options.sim.battery_start_percent = options.battery_percent;
+    glue_options.sim.max_wheel_speed_mm_s = POSIX_BASE_DEFAULT_MAX_WHEEL_MM_S;
+    glue_options.max_wheel_mm_s = options.max_wheel_mm_s;
     glue_options.write = write_to_link;
     glue_options.write_context = &output;
     if (base_glue_init(&glue, &glue_options, monotonic_ms()) != 0) {

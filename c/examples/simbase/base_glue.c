@@ -115,6 +115,22 @@ static void evaluate_health(base_glue_t *glue)
     (void)ctrlbus_base_health_add(&glue->base, code, message);
 }
 
+/* The stack's limits from the simulated robot: its top wheel speed (or the option's) and its
+ * wheel track, so (vx, omega) is scaled as a whole and a turn stays the same turn. */
+static void set_limits(base_glue_t *glue)
+{
+    int32_t limit = glue->options.max_wheel_mm_s;
+    if (limit < 0) {
+        return;
+    }
+    if (limit == 0) {
+        limit = glue->sim.config.max_wheel_speed_mm_s;
+    }
+    int32_t track = 2 * glue->sim.config.half_track_mm;
+    glue->config.limits.max_wheel_mm_s = (uint16_t)(limit < (int32_t)UINT16_MAX ? limit : (int32_t)UINT16_MAX);
+    glue->config.limits.wheel_track_mm = (uint16_t)(track < (int32_t)UINT16_MAX ? track : (int32_t)UINT16_MAX);
+}
+
 /* ---- the interface -------------------------------------------------------------------------- */
 
 int32_t base_glue_init(base_glue_t *glue, const base_glue_options_t *options, uint32_t now_ms)
@@ -149,6 +165,7 @@ int32_t base_glue_init(base_glue_t *glue, const base_glue_options_t *options, ui
     config->binary_config = options->binary_config;
     config->binary_config_size = options->binary_config_size;
     config->watchdog_ms = options->watchdog_off ? CTRLBUS_BASE_WATCHDOG_OFF : options->watchdog_ms;
+    set_limits(glue);
     config->write = options->write;
     config->write_context = options->write_context;
     config->context = glue;
