@@ -23,10 +23,9 @@ from pathlib import Path
 
 import pytest
 from base_harness import REPO, FramePeer, Process, connect_tcp, connect_unix
+from test_firmware import FIRMWARE_BUILD, FIRMWARE_SOURCES, qemu_command
 
 POSIX_BASE = REPO / "build" / "c" / "examples" / "posix_base" / "posix_base"
-FIRMWARE_SOURCES = REPO / "c" / "firmware"
-FIRMWARE_BUILD = REPO / "build" / "firmware"
 FIRMWARE_IMAGE = FIRMWARE_BUILD / "ctrlbus-base.elf"
 SIM = [sys.executable, "-m", "ctrlbus", "sim"]
 
@@ -98,13 +97,7 @@ def start_base(name: str, *options: str) -> ServedBase:
         return served
     assert name == "firmware" and not options, "the firmware has no command line"
     uart_socket = workdir / "uart0.sock"
-    command = [
-        "qemu-system-arm", "-M", "mps2-an385", "-display", "none", "-monitor", "none", "-nodefaults",
-        "-kernel", str(FIRMWARE_IMAGE),
-        "-chardev", f"socket,id=uart0,path={uart_socket},server=on,wait=off",
-        "-serial", "chardev:uart0",
-    ]  # fmt: skip
-    process = Process(command, log, stdout_pipe=False)
+    process = Process(qemu_command(FIRMWARE_IMAGE, uart_socket), log, stdout_pipe=False)
     served = ServedBase(name, process, workdir)
     served.uart_socket = uart_socket
     return served
