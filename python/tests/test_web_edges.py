@@ -7,6 +7,7 @@ token from the environment is never echoed, and a velocity during an emergency s
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import os
 import re
@@ -130,6 +131,28 @@ def test_a_failing_source_is_logged_with_a_rate_limit(caplog: pytest.LogCaptureF
     assert all(reply["type"] == "error" for reply in replies)
     lines = [line for line in web_lines(caplog) if "refused" in line]
     assert 1 <= len(lines) <= MAX_LINES_PER_PATH, f"{len(lines)} lines for 300 refusals"
+
+
+def test_a_failing_snapshot_is_logged_with_a_rate_limit(caplog: pytest.LogCaptureFixture) -> None:
+    caplog.set_level(logging.INFO, logger=WEB_LOGGER)
+
+    class Broken(FakeSimSource):
+        def snapshot(self) -> dict[str, Any]:
+            raise RuntimeError("the Core's state is being rebuilt")
+
+    srv = serve(Broken(), push_hz=100.0)
+    try:
+
+        async def scenario() -> None:
+            async with aiohttp.ClientSession() as session, session.ws_connect(base_url(srv) + "/ws"):
+                await asyncio.sleep(1.0)  # about 100 pushes, each failing
+
+        run(scenario)
+    finally:
+        srv.stop()
+    lines = [line for line in web_lines(caplog) if "snapshot() failed" in line]
+    assert srv.counters.source_errors >= 50
+    assert 1 <= len(lines) <= MAX_LINES_PER_PATH, f"{len(lines)} lines for the failures"
 
 
 # -- finding 4: edges -----------------------------------------------------------------------------

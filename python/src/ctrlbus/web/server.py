@@ -516,8 +516,7 @@ class DashboardServer:
             data = self.source.snapshot()
         except Exception:
             self.counters.source_errors += 1
-            if self.counters.source_errors <= 5:
-                log.exception("the Core's snapshot() failed")
+            self._log.log(logging.ERROR, "snapshot-failed", "the Core's snapshot() failed", exc_info=True)
             return None
         self._snapshot_seq += 1
         loop = asyncio.get_running_loop()
@@ -533,8 +532,9 @@ class DashboardServer:
             return _dumps(_finite_only(message))
         except TypeError:
             self.counters.source_errors += 1
-            if self.counters.source_errors <= 5:
-                log.exception("the Core's snapshot is not plain JSON")
+            self._log.log(
+                logging.ERROR, "snapshot-not-json", "the Core's snapshot is not plain JSON", exc_info=True
+            )
             return None
 
 
