@@ -127,8 +127,9 @@ static void set_limits(base_glue_t *glue)
         limit = glue->sim.config.max_wheel_speed_mm_s;
     }
     int32_t track = 2 * glue->sim.config.half_track_mm;
-    glue->config.limits.max_wheel_mm_s = (uint16_t)(limit < (int32_t)UINT16_MAX ? limit : (int32_t)UINT16_MAX);
-    glue->config.limits.wheel_track_mm = (uint16_t)(track < (int32_t)UINT16_MAX ? track : (int32_t)UINT16_MAX);
+    const int32_t field_max = (int32_t)UINT16_MAX; /* both limits are u16 fields */
+    glue->config.limits.max_wheel_mm_s = (uint16_t)(limit < field_max ? limit : field_max);
+    glue->config.limits.wheel_track_mm = (uint16_t)(track < field_max ? track : field_max);
 }
 
 /* ---- the interface -------------------------------------------------------------------------- */

@@ -14,9 +14,9 @@
  *
  * The simulation runs on its own clock (time_scale_percent of real time); the stack's watchdog and
  * frame timeout run on real time. By default the stack limits commands to the simulated robot's
- * top wheel speed (see max_wheel_mm_s below). Health: the battery's condition is re-evaluated at every poll
- * (the reference does it every 100 ms) and registered as the reference does (0x01020100 below
- * 30 %, 0x02020100 below 10 %), next to the stack's own motor-watchdog warning.
+ * top wheel speed (see max_wheel_mm_s below). Health: the battery's condition is re-evaluated at
+ * every poll (the reference does it every 100 ms) and registered as the reference does
+ * (0x01020100 below 30 %, 0x02020100 below 10 %), next to the stack's own motor-watchdog warning.
  */
 #ifndef CTRLBUS_EXAMPLES_BASE_GLUE_H
 #define CTRLBUS_EXAMPLES_BASE_GLUE_H
