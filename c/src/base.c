@@ -666,3 +666,14 @@ int32_t ctrlbus_base_init(ctrlbus_base_t *base, const ctrlbus_base_config_t *con
     base->flags = 0;
     return CTRLBUS_OK;
 }
+
+void ctrlbus_base_reset_line(ctrlbus_base_t *base)
+{
+    if (base == NULL || base->config == NULL) {
+        return;
+    }
+    uint16_t head = base->rx_head;
+    CTRLBUS_RING_FENCE();
+    base->rx_tail = head;
+    ctrlbus_decoder_reset(&base->decoder);
+}

@@ -836,6 +836,24 @@ static void test_frame_timeout_is_configurable(void)
     expect_nothing_more();
 }
 
+/* A new peer on the line: its first request is not glued to the old peer's half frame, and
+ * nothing else of the session is forgotten. */
+static void test_reset_line_forgets_the_half_frame(void)
+{
+    setup();
+    config.frame_timeout_ms = CTRLBUS_BASE_TIMEOUT_OFF;
+    start();
+    feed_hex("10 02 F8");
+    ctrlbus_base_poll(&base, now);
+    feed_hex("10"); /* still in the ring: forgotten too */
+    ctrlbus_base_reset_line(&base);
+    feed_hex("10 02 F8 30 DA"); /* GET_BASE_STATUS */
+    ctrlbus_base_poll(&base, now);
+    expect_ok(2);
+    expect_nothing_more();
+    ctrlbus_base_reset_line(NULL); /* harmless */
+}
+
 static void test_answer_frame_types(void)
 {
     setup();
@@ -1718,6 +1736,7 @@ int main(void)
     RUN(test_checksum_failed_set_base_motor_is_not_executed);
     RUN(test_decoder_events);
     RUN(test_frame_timeout_is_configurable);
+    RUN(test_reset_line_forgets_the_half_frame);
     RUN(test_answer_frame_types);
     RUN(test_answers_keep_stream_order);
     RUN(test_a_failing_write_cuts_one_answer_only);

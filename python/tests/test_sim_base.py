@@ -153,6 +153,36 @@ def test_deadreckon_deltas_integrate_to_the_odometry_pose() -> None:
     assert odometry != rig.world.true_pose
 
 
+def test_a_turn_of_more_than_half_a_turn_is_reported_whole() -> None:
+    # Issue 17: 270 degrees left between two requests read -90 (a right turn) before.
+    rig = Rig()
+    rig.ok(set_velocity(0.0, 0.0))
+    turn_before = rig.world.odometry_turn_deg
+    rig.ok(set_velocity(0.0, 3.0))
+    while rig.world.odometry_turn_deg - turn_before < 270.0:
+        rig.wait(0.01)
+        rig.ok(bytes((0x30,)))  # status requests feed the watchdog without reading the deltas
+    answer = decode_answer("SET_V_AND_GET_DEADRECKON", OK, rig.ok(set_velocity(0.0, 0.0), 13))
+    assert isinstance(answer, SetVAndGetDeadreckonAnswer)
+    assert answer.dtheta_deg == pytest.approx(rig.world.odometry_turn_deg - turn_before, abs=1e-4)
+    assert 270.0 <= answer.dtheta_deg < 300.0
+
+
+def test_a_turn_beyond_the_field_range_is_carried_into_the_next_answer() -> None:
+    # The s32 Q16 field holds +-32768 degrees; more is sent saturated and the rest comes next.
+    rig = Rig()
+    rig.ok(set_velocity(0.0, 0.0))
+    turn_before = rig.world.odometry_turn_deg
+    rig.world._odometry_turn_deg += 40_000.0  # ~111 turns on the spot since the last request
+    first = decode_answer("SET_V_AND_GET_DEADRECKON", OK, rig.ok(set_velocity(0.0, 0.0), 13))
+    second = decode_answer("SET_V_AND_GET_DEADRECKON", OK, rig.ok(set_velocity(0.0, 0.0), 13))
+    assert isinstance(first, SetVAndGetDeadreckonAnswer) and isinstance(second, SetVAndGetDeadreckonAnswer)
+    assert first.dtheta_deg_q16 == 2**31 - 1
+    assert first.dtheta_deg + second.dtheta_deg == pytest.approx(
+        rig.world.odometry_turn_deg - turn_before, abs=1e-3
+    )
+
+
 def test_set_base_motor_drives_the_wheels_and_a_bad_checksum_does_not() -> None:
     rig = Rig()
     bad = bytearray(encode(CTRL_BUS, set_motor(-200, -200)))

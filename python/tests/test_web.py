@@ -453,7 +453,7 @@ def test_addresses_and_the_token_rule() -> None:
         DashboardOptions(host="0.0.0.0")
     with pytest.raises(UsageError, match="--token"):
         DashboardOptions(host="192.168.1.2")
-    assert DashboardOptions(host="0.0.0.0", token="X").url == "http://127.0.0.1:8080/?token=X"
+    assert DashboardOptions(host="0.0.0.0", token=TOKEN).url == f"http://127.0.0.1:8080/?token={TOKEN}"
     for bad_token in ("", "has space", "a&b", "é"):
         with pytest.raises(UsageError):
             DashboardOptions(token=bad_token)
@@ -805,23 +805,24 @@ def test_with_a_token_every_read_and_control_needs_it(fake: FakeSimSource) -> No
 
 
 def netns_check(mode: str) -> int:
-    """Inside a private network namespace: listen on 0.0.0.0 with token X, as the issue's
-    acceptance case says, and print what clients get as one JSON line. `mode` "server": the
-    dashboard server over the fake; "demo": `python -m ctrlbus.demo --listen 0.0.0.0 --token X`,
-    the real Core and simulator behind it."""
+    """Inside a private network namespace: listen on 0.0.0.0 with a token (issue 17 made the
+    one-character token of the original acceptance case too weak for a non-loopback address), and
+    print what clients get as one JSON line. `mode` "server": the dashboard server over the fake;
+    "demo": `python -m ctrlbus.demo --listen 0.0.0.0 --token TOKEN`, the real Core and simulator
+    behind it."""
     if mode == "server":
         fake = FakeSimSource()
-        srv = DashboardServer(fake, DashboardOptions(host="0.0.0.0", port=0, token="X"))
+        srv = DashboardServer(fake, DashboardOptions(host="0.0.0.0", port=0, token=TOKEN))
         srv.start()
         try:
-            results = token_checks(f"http://127.0.0.1:{srv.port}", "X")
+            results = token_checks(f"http://127.0.0.1:{srv.port}", TOKEN)
         finally:
             srv.stop()
         results["estop latched"] = [list(call) for call in fake.calls] == [["emergency_stop"]]
         print(json.dumps(results))
         return 0
     demo = subprocess.Popen(
-        [sys.executable, "-m", "ctrlbus.demo", "--listen", "0.0.0.0", "--token", "X"],
+        [sys.executable, "-m", "ctrlbus.demo", "--listen", "0.0.0.0", "--token", TOKEN],
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
         text=True,
@@ -831,13 +832,13 @@ def netns_check(mode: str) -> int:
         output = []
         for line in demo.stdout:
             output.append(line)
-            if "dashboard at http://127.0.0.1:8080/?token=X" in line:
+            if f"dashboard at http://127.0.0.1:8080/?token={TOKEN}" in line:
                 break
         else:
             raise AssertionError("the demo did not start:\n" + "".join(output))
-        results = token_checks("http://127.0.0.1:8080", "X")
+        results = token_checks("http://127.0.0.1:8080", TOKEN)
         request = urllib.request.Request(
-            "http://127.0.0.1:8080/api/snapshot", headers={"X-Ctrlbus-Token": "X"}
+            "http://127.0.0.1:8080/api/snapshot", headers={"X-Ctrlbus-Token": TOKEN}
         )
         with urllib.request.urlopen(request, timeout=10) as response:
             results["estop latched"] = json.load(response)["data"]["command"]["estop"]

@@ -165,6 +165,8 @@ int main(int argc, char **argv)
         glue_options.binary_config_size = (uint16_t)binary_config_size;
     }
     glue_options.sim.battery_start_percent = options.battery_percent;
+    glue_options.sim.max_wheel_speed_mm_s = POSIX_BASE_DEFAULT_MAX_WHEEL_MM_S;
+    glue_options.max_wheel_mm_s = options.max_wheel_mm_s;
     glue_options.write = write_to_link;
     glue_options.write_context = &output;
     if (base_glue_init(&glue, &glue_options, monotonic_ms()) != 0) {
@@ -184,9 +186,13 @@ int main(int argc, char **argv)
             status = fail(error);
             break;
         }
-        if ((events & POSIX_LINK_CONNECTED) && options.verbose) {
-            (void)fprintf(stderr, "posix_base: connection %llu is now the link\n",
-                          (unsigned long long)output.link.connections);
+        if (events & POSIX_LINK_CONNECTED) {
+            /* A new connection is a new line: nothing of the old one's half frame carries over. */
+            base_glue_new_line(&glue);
+            if (options.verbose) {
+                (void)fprintf(stderr, "posix_base: connection %llu is now the link\n",
+                              (unsigned long long)output.link.connections);
+            }
         }
         uint8_t received[BASE_GLUE_RX_RING_SIZE / 2u]; /* the ring holds one byte less than its size */
         long got = 0;

@@ -16,7 +16,8 @@ static const char usage_text[] =
     "\n"
     "  --pty                  create a pseudo-terminal and print its path (\"pty: /dev/pts/N\")\n"
     "  --listen HOST:PORT     listen on TCP; each accepted connection is the serial link and a\n"
-    "                         new connection replaces the old one. PORT 0 picks a free port.\n"
+    "                         new connection replaces the old one as a new line (nothing the\n"
+    "                         old one half sent carries over). PORT 0 picks a free port.\n"
     "                         Prints \"listen: HOST:PORT\" once listening.\n"
     "\n"
     "options:\n"
@@ -32,6 +33,10 @@ static const char usage_text[] =
     "                         answered ERROR 0x8000 and the Core falls back to GET_BASE_CONF\n"
     "  --time-scale FACTOR    simulated time per real time (0.01 to 1000); default 1\n"
     "  --battery PERCENT      battery charge at start (1 to 100); default 80\n"
+    "  --max-wheel-speed MM_S limit what the Core commands to MM_S mm/s per wheel (1 to 65535),\n"
+    "                         scaling both wheels together so that a curve keeps its curvature;\n"
+    "                         default 1000, the simulated robot's top speed (wheel track 236 mm);\n"
+    "                         0 turns the limit off (each wheel is then clamped on its own)\n"
     "  --verbose              log connections on stderr\n"
     "  --help                 show this text\n"
     "\n"
@@ -110,6 +115,7 @@ int posix_base_parse_options(int argc, char **argv, posix_base_options_t *option
     defaults.frame_timeout_ms = POSIX_BASE_DEFAULT_FRAME_TIMEOUT_MS;
     defaults.time_scale_percent = 100;
     defaults.battery_percent = 80;
+    defaults.max_wheel_mm_s = POSIX_BASE_DEFAULT_MAX_WHEEL_MM_S;
     *options = defaults;
     int have_listen = 0;
 
@@ -118,7 +124,7 @@ int posix_base_parse_options(int argc, char **argv, posix_base_options_t *option
         int takes_value = strcmp(arg, "--listen") == 0 || strcmp(arg, "--profile") == 0 ||
                           strcmp(arg, "--watchdog-ms") == 0 || strcmp(arg, "--time-scale") == 0 ||
                           strcmp(arg, "--frame-timeout-ms") == 0 || strcmp(arg, "--binary-config") == 0 ||
-                          strcmp(arg, "--battery") == 0;
+                          strcmp(arg, "--battery") == 0 || strcmp(arg, "--max-wheel-speed") == 0;
         const char *value = NULL;
         if (takes_value) {
             if (i + 1 >= argc) {
@@ -167,6 +173,11 @@ int posix_base_parse_options(int argc, char **argv, posix_base_options_t *option
                 return fail(error, error_size, "--battery wants a percentage from 1 to 100, got", value);
             }
             options->battery_percent = (int32_t)number;
+        } else if (strcmp(arg, "--max-wheel-speed") == 0) {
+            if (parse_unsigned(value, 0, POSIX_BASE_MAX_WHEEL_LIMIT_MM_S, &number) != 0) {
+                return fail(error, error_size, "--max-wheel-speed wants mm/s from 0 to 65535, got", value);
+            }
+            options->max_wheel_mm_s = number == 0u ? -1 : (int32_t)number;
         } else {
             return fail(error, error_size, "unknown argument", arg);
         }

@@ -21,6 +21,7 @@ typedef struct {
     uint32_t frame_timeout_ms;   /* inter-byte timeout; 0: off */
     uint32_t time_scale_percent; /* simulated time per real time; 100 = real time */
     int32_t battery_percent;     /* battery at start, 1..100 */
+    int32_t max_wheel_mm_s;      /* the stack's wheel-speed limit; negative: none */
     const char *binary_config_path; /* NULL unless --binary-config: the blob served for 0x21 */
     int verbose;
 } posix_base_options_t;
@@ -30,6 +31,9 @@ typedef struct {
  * of a host program (docs/protocol.md §7.6), not an MCU's 10 ms. */
 #define POSIX_BASE_DEFAULT_FRAME_TIMEOUT_MS 100u
 #define POSIX_BASE_MAX_FRAME_TIMEOUT_MS 60000u
+/* The simulated robot's top wheel speed (simbase's default), the default limit. */
+#define POSIX_BASE_DEFAULT_MAX_WHEEL_MM_S 1000
+#define POSIX_BASE_MAX_WHEEL_LIMIT_MM_S 65535u
 
 /* Parse argv into *options (defaults first). Returns 0 on success; on a bad command line returns
  * -1 with a one-line description in error[error_size] (no trailing newline). */

@@ -115,6 +115,23 @@ static void evaluate_health(base_glue_t *glue)
     (void)ctrlbus_base_health_add(&glue->base, code, message);
 }
 
+/* The stack's limits from the simulated robot: its top wheel speed (or the option's) and its
+ * wheel track, so (vx, omega) is scaled as a whole and a turn stays the same turn. */
+static void set_limits(base_glue_t *glue)
+{
+    int32_t limit = glue->options.max_wheel_mm_s;
+    if (limit < 0) {
+        return;
+    }
+    if (limit == 0) {
+        limit = glue->sim.config.max_wheel_speed_mm_s;
+    }
+    int32_t track = 2 * glue->sim.config.half_track_mm;
+    const int32_t field_max = (int32_t)UINT16_MAX; /* both limits are u16 fields */
+    glue->config.limits.max_wheel_mm_s = (uint16_t)(limit < field_max ? limit : field_max);
+    glue->config.limits.wheel_track_mm = (uint16_t)(track < field_max ? track : field_max);
+}
+
 /* ---- the interface -------------------------------------------------------------------------- */
 
 int32_t base_glue_init(base_glue_t *glue, const base_glue_options_t *options, uint32_t now_ms)
@@ -149,6 +166,7 @@ int32_t base_glue_init(base_glue_t *glue, const base_glue_options_t *options, ui
     config->binary_config = options->binary_config;
     config->binary_config_size = options->binary_config_size;
     config->watchdog_ms = options->watchdog_off ? CTRLBUS_BASE_WATCHDOG_OFF : options->watchdog_ms;
+    set_limits(glue);
     config->write = options->write;
     config->write_context = options->write_context;
     config->context = glue;
@@ -168,6 +186,11 @@ int32_t base_glue_init(base_glue_t *glue, const base_glue_options_t *options, ui
 void base_glue_feed(base_glue_t *glue, const uint8_t *data, size_t size)
 {
     (void)ctrlbus_base_feed(&glue->base, data, size);
+}
+
+void base_glue_new_line(base_glue_t *glue)
+{
+    ctrlbus_base_reset_line(&glue->base);
 }
 
 void base_glue_poll(base_glue_t *glue, uint32_t now_ms)

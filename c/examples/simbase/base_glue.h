@@ -13,9 +13,10 @@
  * simulation (simbase_answers.h) or apply it to the simulation.
  *
  * The simulation runs on its own clock (time_scale_percent of real time); the stack's watchdog and
- * frame timeout run on real time. Health: the battery's condition is re-evaluated at every poll
- * (the reference does it every 100 ms) and registered as the reference does (0x01020100 below
- * 30 %, 0x02020100 below 10 %), next to the stack's own motor-watchdog warning.
+ * frame timeout run on real time. By default the stack limits commands to the simulated robot's
+ * top wheel speed (see max_wheel_mm_s below). Health: the battery's condition is re-evaluated at
+ * every poll (the reference does it every 100 ms) and registered as the reference does
+ * (0x01020100 below 30 %, 0x02020100 below 10 %), next to the stack's own motor-watchdog warning.
  */
 #ifndef CTRLBUS_EXAMPLES_BASE_GLUE_H
 #define CTRLBUS_EXAMPLES_BASE_GLUE_H
@@ -43,6 +44,11 @@ typedef struct {
     uint16_t binary_config_size;
     uint16_t hardware_version;    /* CONNECT_BASE hardware_version: tells the hosts apart */
     simbase_config_t sim;         /* zero fields: simbase defaults */
+    /* The stack's velocity limit (ctrlbus_base_limits_t.max_wheel_mm_s, with the simulated
+     * robot's wheel track, so that a limited command keeps its curvature). 0: the simulated
+     * robot's top wheel speed (sim.max_wheel_speed_mm_s); negative: no limit in the stack (each
+     * wheel is then clamped on its own by the simulation, which straightens a curve). */
+    int32_t max_wheel_mm_s;
     ctrlbus_write_fn write;       /* where answers go (required) */
     void *write_context;
     void (*reboot)(void *context); /* BASE_CMD REBOOT after its OK answer; NULL: unsupported */
@@ -74,6 +80,10 @@ int32_t base_glue_init(base_glue_t *glue, const base_glue_options_t *options, ui
  * as only one context feeds; bytes that find the ring full are dropped and counted by the stack.
  * Cost: O(size). */
 void base_glue_feed(base_glue_t *glue, const uint8_t *data, size_t size);
+
+/* The host's link has a new peer (a new TCP connection): forget the bytes and the half-received
+ * frame of the old one. Main loop only. Cost: O(1). */
+void base_glue_new_line(base_glue_t *glue);
 
 /* Parse and answer what was fed, run the watchdog and health checks, and step the simulation up
  * to now_ms. Main loop only. Cost: O(bytes fed since the last call) plus the simulation steps. */

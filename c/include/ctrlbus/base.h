@@ -315,6 +315,13 @@ size_t ctrlbus_base_feed(ctrlbus_base_t *base, const uint8_t *data, size_t len);
  * size in byte visits (a few write calls per field); no work beyond the ring's content at entry. */
 void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms);
 
+/* A new line: the host connected a new peer (a new TCP connection, a re-plugged cable), so the
+ * bytes received so far and any half-received frame belong to a link that is gone. Forgets them
+ * (the ring's unread bytes and the decoder's buffer); everything else (watchdog, queue, health,
+ * counters) is kept. Call it before feeding the new peer's first byte.
+ * Not ISR-safe: main loop only, with the feeding interrupt masked if there is one. Cost: O(1). */
+void ctrlbus_base_reset_line(ctrlbus_base_t *base);
+
 /* Registers a health error the Core reads with HEALTH_MGMT (docs/protocol.md §10): code is the
  * u32 layout of CTRLBUS_HEALTH_CODE(), message at most 31 ASCII characters (NULL: empty), kept by
  * pointer (a string constant is right). Entries keep registration order (GET_ERROR's index).

@@ -384,6 +384,23 @@ class Annotator:
             self._close_open(stream, direction, out)
         return out
 
+    @property
+    def open_seq(self) -> int | None:
+        """Sequence number of the earliest rejection whose end is not known yet, or None.
+
+        Annotations with a higher number may already have been returned (from another stream);
+        a reader printing in sequence order holds them back until it is reported."""
+        pending = [stream.open_seq for stream in self._streams.values() if stream.open_event is not None]
+        return min(pending, default=None)
+
+    def report_open(self) -> list[Annotation]:
+        """Report every rejection still open as it stands now (bytes of it still to come are
+        then reported as a new rejection): what a streaming reader does to bound what it holds."""
+        out: list[Annotation] = []
+        for direction, stream in self._streams.items():
+            self._close_open(stream, direction, out)
+        return out
+
     # -- streams and rejections ---------------------------------------------------------------
 
     def _stream(self, direction: Direction | None) -> _Stream:

@@ -708,6 +708,18 @@ class BaseStack:
             self._bytes_received += len(data)
             return self._handle(self._decoder.feed_items(data, now), now)
 
+    def reset_line(self) -> None:
+        """A new line: the link has a new peer (a new TCP connection, a re-plugged cable), so the
+        half-received frame of the old one is forgotten (its decoder counts are kept). Nothing
+        else of the session changes. `serve` calls it when a link's `connections` count grows."""
+        with self.lock:
+            self._fresh_decoder()
+
+    def _fresh_decoder(self) -> None:
+        """A new decoder (nothing buffered); the old one's counts are kept for counters()."""
+        self._decoder_before_reboots = _add_stats(self._decoder_before_reboots, self._decoder.stats)
+        self._decoder = StreamDecoder(max_frame=self.config.max_frame, timeout=self.config.frame_timeout_s)
+
     def tick(self, now: float) -> bytes:
         """Let time pass without bytes: application time, motor watchdog, inter-byte timeout.
         Returns answer bytes (a timeout can complete frames buffered behind a false start)."""
@@ -859,10 +871,7 @@ class BaseStack:
         if self._resetting:
             # Nothing buffered survives the reset either: a fresh decoder (its counts are kept).
             self._resetting = False
-            self._decoder_before_reboots = _add_stats(self._decoder_before_reboots, self._decoder.stats)
-            self._decoder = StreamDecoder(
-                max_frame=self.config.max_frame, timeout=self.config.frame_timeout_s
-            )
+            self._fresh_decoder()
         self._bytes_sent += len(out)
         return bytes(out)
 
@@ -1029,8 +1038,13 @@ def serve(
     """
     if not (math.isfinite(poll_s) and poll_s > 0):
         raise UsageError(f"poll_s must be a finite number > 0, got {poll_s!r}")
+    # A link that counts its peers (a TCP listener) starts a new line with each new one.
+    connections = getattr(link, "connections", None)
     while stop_event is None or not stop_event.is_set():
         data = link.read(poll_s)
+        if connections is not None and link.connections != connections:  # type: ignore[attr-defined]
+            connections = link.connections  # type: ignore[attr-defined]
+            stack.reset_line()
         answer = stack.receive(data, clock())
         if answer:
             link.write(answer)

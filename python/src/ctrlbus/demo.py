@@ -103,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
         server = start_dashboard(source, options)
         cleanup.callback(server.stop)
         print(f"ctrlbus demo: base {base.description}", flush=True)
-        print(f"ctrlbus demo: dashboard at {server.url}", flush=True)
+        print(f"ctrlbus demo: dashboard at {server.display_url}", flush=True)
         print("ctrlbus demo: Ctrl-C to stop", flush=True)
         while not stop.wait(0.25):
             failure = base.failure()

@@ -79,7 +79,14 @@ def add_dashboard_arguments(parser: argparse.ArgumentParser) -> None:
     """Where the browser dashboard listens and its access token (read by ctrlbus.web.options)."""
     # Imported here: ctrlbus.web.options is plain Python, but the CLI should not pull the web
     # package in for commands that never show a dashboard.
-    from ctrlbus.web.options import DEFAULT_HTTP_HOST, DEFAULT_HTTP_PORT, DEFAULT_PUSH_HZ, TOKEN_ENV
+    from ctrlbus.web.options import (
+        DEFAULT_HTTP_HOST,
+        DEFAULT_HTTP_PORT,
+        DEFAULT_PUSH_HZ,
+        GENERATE_TOKEN,
+        MIN_REMOTE_TOKEN_CHARS,
+        TOKEN_ENV,
+    )
 
     parser.add_argument(
         "--http",
@@ -95,7 +102,9 @@ def add_dashboard_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         metavar="TOKEN",
         help=f"secret every dashboard request must carry (?token=... or an X-Ctrlbus-Token header); "
-        f"default: ${TOKEN_ENV}",
+        f"'{GENERATE_TOKEN}' makes a random one (printed in the dashboard address); an address other "
+        f"than loopback needs at least {MIN_REMOTE_TOKEN_CHARS} characters; default: ${TOKEN_ENV} "
+        "(never printed)",
     )
     parser.add_argument(
         "--push-hz",

@@ -149,8 +149,8 @@ def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
                 from ctrlbus.web import start_dashboard
 
                 server = start_dashboard(session, dashboard_options)
-                print(f"ctrlbus core: dashboard at {server.url}", file=sys.stderr, flush=True)
-                output.note = f"dashboard {server.url}"
+                print(f"ctrlbus core: dashboard at {server.display_url}", file=sys.stderr, flush=True)
+                output.note = f"dashboard {server.display_url}"
             while True:
                 elapsed = time.monotonic() - started
                 if not output.show(session):

@@ -3,7 +3,8 @@
 
     ctrlbus sim --pty | --listen HOST:PORT | --port URL [--config FILE] [--room FILE]
                 [--binary-config FILE] [--profile reference|sdk2020] [--time-scale X] [--seed N]
-                [--watchdog-ms N] [--frame-timeout-ms N] [--reference-checksum]
+                [--watchdog-ms N] [--frame-timeout-ms N] [--max-wheel-speed MM_S]
+                [--reference-checksum]
 
 Prints where it serves on stdout as one line (`pty: /dev/pts/N`, `listen: HOST:PORT` or
 `port: URL`), then answers the Core until Ctrl-C or SIGTERM (exit 0).
@@ -19,6 +20,7 @@ from typing import Any
 from ctrlbus.base import DEFAULT_FRAME_TIMEOUT_S, DEFAULT_WATCHDOG_S, serve
 from ctrlbus.cli.common import add_serve_arguments, stop_on_signals
 from ctrlbus.errors import UsageError
+from ctrlbus.sim.description import load_base_description
 from ctrlbus.sim.server import MAX_TIME_SCALE, SimServer, SimSettings
 
 MAX_FRAME_TIMEOUT_MS = 60_000  # as posix_base's --frame-timeout-ms
@@ -77,11 +79,24 @@ def register(subparsers: Any) -> None:
         "for a host behind a USB-serial adapter; 0 switches it off)",
     )
     parser.add_argument(
+        "--max-wheel-speed",
+        default=None,
+        metavar="MM_S",
+        help="limit what the Core commands to MM_S mm/s per wheel, scaling both wheels together so "
+        "that a curve keeps its curvature (default: the robot's max_wheel_speed_mm_s, "
+        f"{_packaged_top_speed():g} for the packaged robot, with its wheel track; 0 switches the limit off)",
+    )
+    parser.add_argument(
         "--reference-checksum",
         action="store_true",
         help="answer checksum errors with 0x00C0 as the reference firmware does (default 0x0040)",
     )
     parser.set_defaults(func=run)
+
+
+def _packaged_top_speed() -> float:
+    """The packaged robot's top wheel speed, for --help (the description is small and local)."""
+    return load_base_description(None).max_wheel_speed_mm_s
 
 
 def _number(option: str, text: str) -> float:
@@ -110,6 +125,9 @@ def settings_from_args(args: argparse.Namespace) -> SimSettings:
             f"--frame-timeout-ms wants a number of milliseconds from 0 to {MAX_FRAME_TIMEOUT_MS}, "
             f"got {args.frame_timeout_ms!r}"
         )
+    max_wheel = None if args.max_wheel_speed is None else _number("--max-wheel-speed", args.max_wheel_speed)
+    if max_wheel is not None and not 0 <= max_wheel < float("inf"):
+        raise UsageError(f"--max-wheel-speed wants a number of mm/s >= 0, got {args.max_wheel_speed!r}")
     seed = None if args.seed is None else _integer("--seed", args.seed)
     if seed is not None and seed < 0:
         raise UsageError(f"--seed wants an integer >= 0, got {args.seed!r}")
@@ -123,6 +141,7 @@ def settings_from_args(args: argparse.Namespace) -> SimSettings:
         watchdog_s=watchdog_ms / 1000.0 if watchdog_ms > 0 else None,
         frame_timeout_s=frame_timeout_ms / 1000.0,
         reference_checksum_code=args.reference_checksum,
+        max_wheel_mm_s=max_wheel,
     )
 
 

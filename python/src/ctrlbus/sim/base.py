@@ -27,6 +27,7 @@ from ctrlbus.base import (
 from ctrlbus.errors import UsageError
 from ctrlbus.kinematics import DeadreckonDelta, Pose, integrate_pose, relative_pose
 from ctrlbus.messages import (
+    S32,
     ConnectBaseAnswer,
     GetBaseBumperDataAnswer,
     GetBaseConfAnswer,
@@ -37,7 +38,6 @@ from ctrlbus.messages import (
     Position,
     SetVAndGetDeadreckonAnswer,
     from_q16,
-    to_q16,
 )
 from ctrlbus.sim.world import World
 
@@ -78,6 +78,12 @@ def _s32(value: float) -> int:
     """A travel total as the s32 the wire carries (wrapping, as a firmware counter would)."""
     raw = round(value) & 0xFFFF_FFFF
     return raw - (1 << 32) if raw >= 1 << 31 else raw
+
+
+def _saturated_q16(value: float) -> int:
+    """`value` in Q16, saturated at the s32 range (the caller carries what did not fit)."""
+    low, high = S32
+    return max(low, min(high, round(value * 65536)))
 
 
 class SimulatedBase(Base):
@@ -130,6 +136,7 @@ class SimulatedBase(Base):
         # The pose the Core has been told about: the sum of every deadreckon answer so far, in the
         # odometry frame. Deltas are measured from it, so the Q16 rounding never accumulates.
         self._reported_pose: Pose | None = None
+        self._reported_turn_deg = 0.0  # the odometry turn (not wrapped) at that pose
         self.events: deque[int] = deque(maxlen=_RECENT_EVENTS)
         self.reboots = 0
 
@@ -228,21 +235,32 @@ class SimulatedBase(Base):
 
     def set_velocity(self, vx_mps: float, vy_mps: float, omega_radps: float) -> SetVAndGetDeadreckonAnswer:
         """Deltas since the previous call (zeros the first time), then the new velocity; vy is
-        ignored (differential drive)."""
+        ignored (differential drive).
+
+        The turn is the whole rotation since the previous call, not the shortest angle between
+        the two headings: three quarters of a turn left read +270, not -90. A value beyond what
+        the s32 field holds is sent saturated and the excess is carried into the next answer,
+        as the C stack does (ctrlbus_diffdrive_take_deadreckon)."""
         current = self._world.odometry_pose
+        turn = self._world.odometry_turn_deg
         if self._reported_pose is None:
             answer = SetVAndGetDeadreckonAnswer(0, 0, 0, self._world.motion_status)
             self._reported_pose = current
+            self._reported_turn_deg = turn
         else:
             delta = relative_pose(self._reported_pose, current)
             answer = SetVAndGetDeadreckonAnswer(
-                to_q16(delta.dx_mm), to_q16(delta.dy_mm), to_q16(delta.dtheta_deg), self._world.motion_status
+                _saturated_q16(delta.dx_mm),
+                _saturated_q16(delta.dy_mm),
+                _saturated_q16(turn - self._reported_turn_deg),
+                self._world.motion_status,
             )
-            # Integrate what the Core will integrate: the rounded deltas.
+            # Integrate what the Core will integrate: the rounded (and saturated) deltas.
             self._reported_pose = integrate_pose(
                 self._reported_pose,
                 DeadreckonDelta(from_q16(answer.dx_mm_q16), from_q16(answer.dy_mm_q16), answer.dtheta_deg),
             )
+            self._reported_turn_deg += answer.dtheta_deg
         self._world.set_velocity(vx_mps, omega_radps)
         return answer
 

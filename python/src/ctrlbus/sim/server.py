@@ -27,6 +27,7 @@ from ctrlbus.base import (
     BaseRunner,
     BaseStack,
     Profile,
+    VelocityLimits,
     parse_profile,
 )
 from ctrlbus.errors import BinaryConfigError, UsageError
@@ -36,7 +37,7 @@ from ctrlbus.sim.description import load_base_description
 from ctrlbus.sim.room import load_room
 from ctrlbus.sim.world import World
 
-__all__ = ["SimServer", "SimSettings", "build_simulated_stack", "read_binary_config"]
+__all__ = ["SimServer", "SimSettings", "build_simulated_stack", "read_binary_config", "robot_limits"]
 
 MAX_TIME_SCALE = 1000.0
 
@@ -54,6 +55,9 @@ class SimSettings:
     watchdog_s: float | None = DEFAULT_WATCHDOG_S
     frame_timeout_s: float = DEFAULT_FRAME_TIMEOUT_S  # inter-byte timeout; 0 switches it off
     reference_checksum_code: bool = False
+    # The stack's wheel-speed limit (mm/s), applied with the robot's wheel track so that a limited
+    # command keeps its curvature. None: the description's max_wheel_speed_mm_s; 0: no limit.
+    max_wheel_mm_s: float | None = None
 
 
 def read_binary_config(path: str | Path) -> bytes:
@@ -69,6 +73,16 @@ def read_binary_config(path: str | Path) -> bytes:
         raise BinaryConfigError(f"{path}: {exc}", offset=exc.offset, path=exc.path) from None
 
 
+def robot_limits(world: World, max_wheel_mm_s: float | None = None) -> VelocityLimits:
+    """The stack's limits for the simulated robot: its top wheel speed (or `max_wheel_mm_s`; 0
+    for none) with its wheel track, so that an extreme (vx, omega) is scaled as a whole and a turn
+    stays the same turn (the world alone would clamp each wheel and straighten it)."""
+    limit = world.base.max_wheel_speed_mm_s if max_wheel_mm_s is None else max_wheel_mm_s
+    if limit == 0:
+        return VelocityLimits()
+    return VelocityLimits(max_wheel_mm_s=limit, wheel_track_mm=world.base.wheel_track_mm)
+
+
 def build_simulated_stack(settings: SimSettings) -> tuple[SimulatedBase, BaseStack]:
     """Load the files and make the simulated base and its stack (nothing runs yet)."""
     scale = settings.time_scale
@@ -76,14 +90,18 @@ def build_simulated_stack(settings: SimSettings) -> tuple[SimulatedBase, BaseSta
         raise UsageError(f"time scale must be a number > 0 and at most {MAX_TIME_SCALE:g}, got {scale:g}")
     if settings.seed is not None and settings.seed < 0:
         raise UsageError(f"seed must be an integer >= 0, got {settings.seed}")
+    limit = settings.max_wheel_mm_s
+    if limit is not None and not (math.isfinite(limit) and limit >= 0):
+        raise UsageError(f"the wheel-speed limit must be a number of mm/s >= 0, got {limit:g}")
+    blob = None if settings.binary_config is None else read_binary_config(settings.binary_config)
+    world = World(load_base_description(settings.config), load_room(settings.room), seed=settings.seed)
     config = BaseConfig(
         profile=parse_profile(settings.profile),
         watchdog_s=settings.watchdog_s,
         frame_timeout_s=settings.frame_timeout_s,
         reference_checksum_code=settings.reference_checksum_code,
+        limits=robot_limits(world, limit),
     )
-    blob = None if settings.binary_config is None else read_binary_config(settings.binary_config)
-    world = World(load_base_description(settings.config), load_room(settings.room), seed=settings.seed)
     sim = SimulatedBase(world, binary_config=blob, time_scale=scale, seed=settings.seed)
     return sim, BaseStack(sim, config)
 

@@ -96,6 +96,8 @@ class World:
         self._time_s = 0.0
         self._pose = pose
         self._odometry = pose
+        # The odometry's heading as a total turn, not wrapped: what deadreckon deltas are made of.
+        self._odometry_turn_deg = pose.theta_deg
         self._commanded = (0.0, 0.0)
         self._wheels = (0.0, 0.0)
         self._encoders = (0.0, 0.0)
@@ -170,6 +172,7 @@ class World:
             raise UsageError(problem)
         self._pose = pose
         if reset_odometry:
+            self._odometry_turn_deg += normalize_angle_deg(pose.theta_deg - self._odometry.theta_deg)
             self._odometry = pose
         self._commanded = (0.0, 0.0)
         self._wheels = (0.0, 0.0)
@@ -280,6 +283,7 @@ class World:
         self._encoders = (self._encoders[0] + measured_left, self._encoders[1] + measured_right)
         delta = deadreckon_from_wheel_travel(measured_left, measured_right, self._base.wheel_track_mm)
         self._odometry = integrate_pose(self._odometry, delta)
+        self._odometry_turn_deg += delta.dtheta_deg
 
     def _slip_noise(self, travel_mm: float) -> float:
         # Standard deviation grows with the square root of the distance, so the drift per metre
@@ -453,6 +457,12 @@ class World:
     def odometry_pose(self) -> Pose:
         """The pose dead-reckoned from the encoder counts (what the base itself believes)."""
         return self._odometry
+
+    @property
+    def odometry_turn_deg(self) -> float:
+        """The odometry's heading without wrapping: its start heading plus every turn since, so
+        two full turns left read 720 more (the deadreckon deltas are differences of it)."""
+        return self._odometry_turn_deg
 
     @property
     def encoders_mm(self) -> tuple[float, float]:

@@ -11,6 +11,7 @@ import argparse
 import ipaddress
 import math
 import os
+import secrets
 from dataclasses import dataclass
 
 from ctrlbus.errors import UsageError
@@ -22,7 +23,15 @@ MAX_PUSH_HZ = 100.0
 # How long a teleop velocity stays in force without being repeated (the page repeats at 10 Hz).
 DEFAULT_TELEOP_HOLD_S = 0.5
 TOKEN_ENV = "CTRLBUS_DASHBOARD_TOKEN"
-MIN_RECOMMENDED_TOKEN_CHARS = 16
+# A dashboard reachable from other machines needs a token nobody can guess by trying.
+MIN_REMOTE_TOKEN_CHARS = 16
+GENERATE_TOKEN = "generate"  # --token generate: a random token, printed once at start
+_GENERATED_TOKEN_BYTES = 24  # 32 URL-safe characters
+
+
+def generate_token() -> str:
+    """A random token for the dashboard: 32 URL-safe characters (192 bits)."""
+    return secrets.token_urlsafe(_GENERATED_TOKEN_BYTES)
 
 
 @dataclass(frozen=True)
@@ -32,6 +41,10 @@ class DashboardOptions:
     token: str | None = None
     push_hz: float = DEFAULT_PUSH_HZ
     teleop_hold_s: float = DEFAULT_TELEOP_HOLD_S
+    # Where the token came from: from the environment it is never printed (display_url hides it);
+    # a generated one is printed once so that its user can open the page.
+    token_from_env: bool = False
+    token_generated: bool = False
 
     def __post_init__(self) -> None:
         if not 0 <= self.port <= 65535:
@@ -45,15 +58,27 @@ class DashboardOptions:
         if not is_loopback(self.host) and not self.token:
             raise UsageError(
                 f"the dashboard would listen on {self.host}, which is not loopback: "
-                f"give --token (or set {TOKEN_ENV}) so that only holders of it can read or control"
+                f"give --token (or set {TOKEN_ENV}) so that only holders of it can read or control; "
+                f"--token {GENERATE_TOKEN} makes a random one"
+            )
+        if not is_loopback(self.host) and self.token and len(self.token) < MIN_REMOTE_TOKEN_CHARS:
+            raise UsageError(
+                f"the dashboard would listen on {self.host}, which is not loopback: its token must have "
+                f"at least {MIN_REMOTE_TOKEN_CHARS} characters (this one has {len(self.token)}); "
+                f"--token {GENERATE_TOKEN} makes a random one"
             )
 
     @classmethod
     def from_args(cls, args: argparse.Namespace) -> DashboardOptions:
         """From the options `ctrlbus.cli.common.add_dashboard_arguments` adds."""
         host, port = parse_http_address(args.http)
-        token = args.token if args.token is not None else os.environ.get(TOKEN_ENV) or None
-        return cls(host=host, port=port, token=token, push_hz=args.push_hz)
+        if args.token == GENERATE_TOKEN:
+            generated = generate_token()
+            return cls(host=host, port=port, token=generated, push_hz=args.push_hz, token_generated=True)
+        if args.token is not None:
+            return cls(host=host, port=port, token=args.token, push_hz=args.push_hz)
+        token = os.environ.get(TOKEN_ENV) or None
+        return cls(host=host, port=port, token=token, push_hz=args.push_hz, token_from_env=token is not None)
 
     @property
     def url(self) -> str:
@@ -67,6 +92,14 @@ class DashboardOptions:
             host = f"[{host}]"
         query = f"/?token={self.token}" if self.token else "/"
         return f"http://{host}:{self.port}{query}"
+
+    @property
+    def display_url(self) -> str:
+        """The address to print: `url`, but a token from the environment stays a secret (the
+        page is opened with `?token=` and the variable's value, which its owner knows)."""
+        if self.token_from_env:
+            return self.url.replace(f"token={self.token}", f"token=${TOKEN_ENV}")
+        return self.url
 
 
 def parse_http_address(text: str, default_port: int = DEFAULT_HTTP_PORT) -> tuple[str, int]:

@@ -20,12 +20,15 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import dataclasses
 import hmac
 import json
 import logging
 import math
 import os
 import threading
+import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -61,6 +64,10 @@ MAX_FRAME_BYTES = 64 * 1024
 LOOPBACK_NAMES = frozenset({"localhost", "127.0.0.1", "::1"})
 PUBLIC_PREFIXES = ("/static/",)
 PUBLIC_PATHS = frozenset({"/favicon.ico"})
+# The log rate of each kind of message a client can trigger (LogLimiter).
+LOG_BURST = 10
+LOG_LINES_PER_SECOND = 1.0
+SERVER_NAME = "ctrlbus-dashboard"  # in the Server header instead of aiohttp's name and version
 SECURITY_HEADERS = {
     "Content-Security-Policy": "default-src 'self'; connect-src 'self'; img-src 'self' data:; "
     "frame-ancestors 'none'; base-uri 'none'; form-action 'none'",
@@ -89,7 +96,53 @@ class ServerCounters:
     source_errors: int = 0
     teleop_timeouts: int = 0
     unauthorized: int = 0
+    refused_during_estop: int = 0
     by_type: dict[str, int] = field(default_factory=dict)
+
+
+class EmergencyStopLatched(CtrlbusError):
+    """A velocity from the page while the emergency stop is latched: refused, not acknowledged."""
+
+
+class LogLimiter:
+    """Every log path the network can trigger goes through here, so that no client can flood the
+    log: each kind of message (`key`) gets a burst of `burst` lines, then `per_second` lines a
+    second on average; the lines left out are counted and the next line of that kind says how
+    many. Used from the server's event loop thread only."""
+
+    def __init__(
+        self,
+        logger: logging.Logger,
+        *,
+        burst: int = LOG_BURST,
+        per_second: float = LOG_LINES_PER_SECOND,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self._logger = logger
+        self._burst = burst
+        self._per_second = per_second
+        self._clock = clock
+        self._credit: dict[str, float] = {}
+        self._last: dict[str, float] = {}
+        self._suppressed: dict[str, int] = {}
+
+    def log(self, level: int, key: str, message: str, *args: object, exc_info: bool = False) -> bool:
+        """Log `message % args` at `level` unless `key` is over its rate; returns whether it did."""
+        now = self._clock()
+        credit = self._credit.get(key, float(self._burst))
+        if key in self._last:
+            credit = min(float(self._burst), credit + (now - self._last[key]) * self._per_second)
+        self._last[key] = now
+        if credit < 1.0:
+            self._credit[key] = credit
+            self._suppressed[key] = self._suppressed.get(key, 0) + 1
+            return False
+        self._credit[key] = credit - 1.0
+        suppressed = self._suppressed.pop(key, 0)
+        if suppressed:
+            message += f" ({suppressed} similar messages suppressed)"
+        self._logger.log(level, message, *args, exc_info=exc_info)
+        return True
 
 
 class DashboardServer:
@@ -111,6 +164,7 @@ class DashboardServer:
         self._snapshot_seq = 0
         self._started_at = 0.0
         self._token = options.token.encode() if options.token else None
+        self._log = LogLimiter(log)
 
     # -- life cycle (any thread) ----------------------------------------------------------------
 
@@ -153,9 +207,16 @@ class DashboardServer:
 
     @property
     def url(self) -> str:
-        return DashboardOptions(
-            host=self.options.host, port=self.port, token=self.options.token, push_hz=self.options.push_hz
-        ).url
+        """The page's address, the token included."""
+        return self._bound_options().url
+
+    @property
+    def display_url(self) -> str:
+        """The address to print: a token from the environment is not shown (options.display_url)."""
+        return self._bound_options().display_url
+
+    def _bound_options(self) -> DashboardOptions:
+        return dataclasses.replace(self.options, port=self.port)
 
     def __enter__(self) -> DashboardServer:
         self.start()
@@ -185,6 +246,7 @@ class DashboardServer:
     async def _serve(self) -> None:
         self._stop = asyncio.Event()
         app = web.Application(middlewares=[self._guard], client_max_size=4096)
+        app.on_response_prepare.append(_add_security_headers)
         app.router.add_get("/", self._index)
         app.router.add_get("/ws", self._websocket)
         app.router.add_get("/api/snapshot", self._snapshot_http)
@@ -228,17 +290,21 @@ class DashboardServer:
             refusal = self._refusal(request)
             if refusal is not None:
                 self.counters.unauthorized += 1
-                log.warning(
-                    "refused %s %s from %s: %s", request.method, request.path, request.remote, refusal.text
+                self._log.log(
+                    logging.WARNING,
+                    "refused-request",
+                    "refused %s %s from %s: %s",
+                    request.method,
+                    request.path,
+                    request.remote,
+                    refusal.text,
                 )
                 return refusal
         response: web.StreamResponse = await handler(request)
-        if not response.prepared:
-            for name, value in SECURITY_HEADERS.items():
-                response.headers.setdefault(name, value)
         return response
 
     def _refusal(self, request: web.Request) -> web.Response | None:
+        host = request.headers.get("Host", "")
         if self._token is not None:
             presented = _presented_token(request)
             if presented is None or not hmac.compare_digest(presented.encode(), self._token):
@@ -247,11 +313,12 @@ class DashboardServer:
                     text="missing or wrong dashboard token",
                     headers={"WWW-Authenticate": 'Bearer realm="ctrlbus"'},
                 )
-        elif _host_name(request.host) not in LOOPBACK_NAMES:
-            # No token means loopback only; a foreign Host header means DNS rebinding.
+        elif _host_name(host) not in LOOPBACK_NAMES:
+            # No token means loopback only; a foreign Host header means DNS rebinding, and none
+            # at all is no proof of loopback (aiohttp would put the machine's name in its place).
             return web.Response(status=403, text="this dashboard answers only to localhost")
         origin = request.headers.get("Origin")
-        if request.path == "/ws" and origin is not None and urlsplit(origin).netloc != request.host:
+        if request.path == "/ws" and origin is not None and urlsplit(origin).netloc != host:
             return web.Response(status=403, text="WebSocket from another origin refused")
         return None
 
@@ -284,10 +351,16 @@ class DashboardServer:
                 elif message.type == WSMsgType.BINARY:
                     await self._reject(client, "binary frames are not accepted; send JSON text")
                 elif message.type == WSMsgType.ERROR:
-                    log.info("WebSocket from %s closed with an error: %s", client.peer, ws.exception())
+                    self._log.log(
+                        logging.INFO,
+                        "websocket-error",
+                        "WebSocket from %s closed with an error: %s",
+                        client.peer,
+                        ws.exception(),
+                    )
                     break
         except (ConnectionError, RuntimeError) as exc:
-            log.info("WebSocket from %s ended: %s", client.peer, exc)
+            self._log.log(logging.INFO, "websocket-ended", "WebSocket from %s ended: %s", client.peer, exc)
         finally:
             self._clients.discard(client)
             if client.sending is not None:
@@ -317,13 +390,20 @@ class DashboardServer:
             return
         try:
             reply = self._apply(client, command)
+        except EmergencyStopLatched as exc:
+            self.counters.refused_during_estop += 1
+            reply = {"type": "error", "error": f"refused: {exc}"}
         except CtrlbusError as exc:
             self.counters.source_errors += 1
-            log.warning("the Core refused %s: %s", type(command).__name__, exc)
+            self._log.log(
+                logging.WARNING, "core-refused", "the Core refused %s: %s", type(command).__name__, exc
+            )
             reply = {"type": "error", "error": f"refused: {exc}"}
         except Exception:
             self.counters.source_errors += 1
-            log.exception("the Core failed on %s", type(command).__name__)
+            self._log.log(
+                logging.ERROR, "core-failed", "the Core failed on %s", type(command).__name__, exc_info=True
+            )
             reply = {"type": "error", "error": "the Core failed on this command (see its log)"}
         else:
             self.counters.accepted += 1
@@ -337,13 +417,24 @@ class DashboardServer:
         self.counters.rejected += 1
         client.rejected += 1
         # A misbehaving page could send thousands; the first few are enough to diagnose it.
-        if client.rejected <= 20 or client.rejected % 1000 == 0:
-            log.warning("rejected a control message from %s (#%d): %s", client.peer, client.rejected, reason)
+        self._log.log(
+            logging.WARNING,
+            "rejected-message",
+            "rejected a control message from %s (#%d): %s",
+            client.peer,
+            client.rejected,
+            reason,
+        )
         await _send(client, _dumps({"type": "error", "error": reason}))
 
     def _apply(self, client: _Client, command: ControlMessage) -> dict[str, Any]:
         """Call the source; the ack reply says what was done."""
         if isinstance(command, Velocity):
+            moving = command.vx_mps != 0.0 or command.omega_radps != 0.0
+            if moving and self._estop_latched():
+                # The source would ignore it: say so rather than acknowledge a motion not made.
+                # (A zero velocity is what the stop holds anyway: acknowledged.)
+                raise EmergencyStopLatched("the emergency stop is latched; release it first")
             vx, omega = clamp_velocity(command.vx_mps, command.omega_radps, self.source.limits())
             self.source.set_velocity(vx, omega)
             self._teleop_owner = client
@@ -357,11 +448,11 @@ class DashboardServer:
         self._teleop_deadline = None
         if isinstance(command, EmergencyStop):
             self.source.emergency_stop()
-            log.warning("emergency stop from %s", client.peer)
+            self._log.log(logging.WARNING, "estop", "emergency stop from %s", client.peer)
             return {"type": "ack", "for": "estop"}
         if isinstance(command, ReleaseStop):
             self.source.release_stop()
-            log.info("emergency stop released from %s", client.peer)
+            self._log.log(logging.INFO, "release", "emergency stop released from %s", client.peer)
             return {"type": "ack", "for": "release"}
         if isinstance(command, GoHome):
             self.source.go_home()
@@ -380,10 +471,19 @@ class DashboardServer:
             self.source.set_velocity(0.0, 0.0)
         except Exception:
             self.counters.source_errors += 1
-            log.exception("could not stop teleop (%s)", why)
+            self._log.log(logging.ERROR, "teleop-failed", "could not stop teleop (%s)", why, exc_info=True)
             return
         self.counters.teleop_timeouts += 1
-        log.info("teleop stopped: %s", why)
+        self._log.log(logging.INFO, "teleop-stopped", "teleop stopped: %s", why)
+
+    def _estop_latched(self) -> bool:
+        """Whether the source's emergency stop is latched, from its snapshot (the protocol has no
+        other way to ask); False when the snapshot cannot say."""
+        try:
+            command = self.source.snapshot().get("command")
+        except Exception:
+            return False
+        return isinstance(command, dict) and command.get("estop") is True
 
     # -- pushing snapshots ----------------------------------------------------------------------
 
@@ -416,8 +516,7 @@ class DashboardServer:
             data = self.source.snapshot()
         except Exception:
             self.counters.source_errors += 1
-            if self.counters.source_errors <= 5:
-                log.exception("the Core's snapshot() failed")
+            self._log.log(logging.ERROR, "snapshot-failed", "the Core's snapshot() failed", exc_info=True)
             return None
         self._snapshot_seq += 1
         loop = asyncio.get_running_loop()
@@ -433,9 +532,18 @@ class DashboardServer:
             return _dumps(_finite_only(message))
         except TypeError:
             self.counters.source_errors += 1
-            if self.counters.source_errors <= 5:
-                log.exception("the Core's snapshot is not plain JSON")
+            self._log.log(
+                logging.ERROR, "snapshot-not-json", "the Core's snapshot is not plain JSON", exc_info=True
+            )
             return None
+
+
+async def _add_security_headers(request: web.Request, response: web.StreamResponse) -> None:
+    """Every response, error pages (401, 403, 404, ...) and the WebSocket upgrade included: the
+    security headers, and a Server header that does not say which aiohttp version runs."""
+    for name, value in SECURITY_HEADERS.items():
+        response.headers.setdefault(name, value)
+    response.headers["Server"] = SERVER_NAME
 
 
 async def _send(client: _Client, text: str) -> None:
