@@ -1,0 +1,99 @@
+# SPDX-License-Identifier: MIT
+"""The minimal base on the emulated MCUs of c/ports/: each board's image runs under QEMU with its
+UART on TCP, and `ctrlbus check` passes against it.
+
+The images are built here with c/ports/Makefile (make -C c/ports), so `make test` always runs the
+current sources; QEMU runs the `minimal_base-qemu.elf` image of each board (c/ports/README.md says
+how it differs from the chip's). The Cortex-M0+ image is built and sized only: QEMU has no
+Cortex-M0+ board.
+"""
+
+from __future__ import annotations
+
+import shutil
+import socket
+import subprocess
+from pathlib import Path
+
+import pytest
+from base_harness import REPO, Process
+from test_firmware import connect_tcp_when_listening
+from test_minimal_base import assert_checker_passes
+
+PORTS_SOURCES = REPO / "c" / "ports"
+PORTS_BUILD = REPO / "build" / "ports"
+
+# board: the QEMU command that runs an image (the image's path is appended)
+QEMU = {
+    "uno": ["qemu-system-avr", "-M", "uno", "-bios"],
+    "microbit": ["qemu-system-arm", "-M", "microbit", "-kernel"],
+    "netduinoplus2": ["qemu-system-arm", "-M", "netduinoplus2", "-kernel"],
+    "sifive_e": ["qemu-system-riscv32", "-M", "sifive_e", "-kernel"],
+}
+TOOLS = ("avr-gcc", "arm-none-eabi-gcc", "riscv64-unknown-elf-gcc", "qemu-system-avr", "qemu-system-arm",
+         "qemu-system-riscv32")  # fmt: skip
+ATMEGA328P_FLASH, ATMEGA328P_RAM = 32 * 1024, 2 * 1024
+
+
+@pytest.fixture(scope="module")
+def port_images() -> Path:
+    """Build every port image; fails with the compiler's output if the build fails."""
+    for tool in TOOLS:
+        if shutil.which(tool) is None:
+            pytest.fail(f"{tool} is missing: scripts/setup.sh installs it")
+    build = subprocess.run(
+        ["make", "-C", str(PORTS_SOURCES), f"O={PORTS_BUILD}"], capture_output=True, text=True, timeout=600
+    )
+    if build.returncode != 0:
+        pytest.fail(f"port build failed:\n{build.stdout}\n{build.stderr}")
+    return PORTS_BUILD
+
+
+def free_port() -> int:
+    """A free TCP port on 127.0.0.1; QEMU binds it right after."""
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port: int = probe.getsockname()[1]
+        return port
+
+
+@pytest.mark.parametrize("board", sorted(QEMU))
+def test_minimal_base_passes_the_checker_on(board: str, port_images: Path, tmp_path: Path) -> None:
+    port = free_port()
+    command = [
+        *QEMU[board], str(port_images / board / "minimal_base-qemu.elf"),
+        "-display", "none", "-monitor", "none", "-nodefaults",
+        # nodelay: QEMU writes byte by byte, which Nagle's algorithm would hold back
+        "-chardev", f"socket,id=uart,host=127.0.0.1,port={port},server=on,wait=off,nodelay=on",
+        "-serial", "chardev:uart",
+    ]  # fmt: skip
+    qemu = Process(command, tmp_path / "qemu.log", False)
+    try:
+        connect_tcp_when_listening(port, qemu)
+        assert_checker_passes(f"socket://127.0.0.1:{port}", tmp_path / "report.json", qemu.describe)
+    finally:
+        qemu.stop()
+
+
+def sections(size_tool: str, image: Path) -> tuple[int, int, int]:
+    """.text, .data and .bss of an image, as the binutils `size` tool counts them."""
+    output = subprocess.run([size_tool, str(image)], capture_output=True, text=True, check=True).stdout
+    text, data, bss = (int(field) for field in output.splitlines()[1].split()[:3])
+    return text, data, bss
+
+
+@pytest.mark.parametrize("image", ["minimal_base.elf", "minimal_base-qemu.elf"])
+def test_atmega328p_image_fits_the_chip(image: str, port_images: Path) -> None:
+    text, data, bss = sections("avr-size", port_images / "uno" / image)
+    assert text + data <= ATMEGA328P_FLASH, f"flash {text + data} B"
+    assert data + bss <= ATMEGA328P_RAM, f"static RAM {data + bss} B"
+
+
+def test_cortex_m0plus_image_is_built(port_images: Path) -> None:
+    image = port_images / "cortex-m0plus" / "minimal_base.elf"
+    text, _data, _bss = sections("arm-none-eabi-size", image)
+    assert text > 0
+    attributes = subprocess.run(
+        ["arm-none-eabi-readelf", "-A", str(image)], capture_output=True, text=True, check=True
+    ).stdout
+    assert "Tag_CPU_arch: v6S-M" in attributes, attributes  # ARMv6-M, Cortex-M0+'s architecture
