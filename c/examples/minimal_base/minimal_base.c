@@ -1,14 +1,11 @@
 /* SPDX-License-Identifier: MIT */
 /* The smallest complete robot base on the ctrlbus base stack: it answers the 13 mandatory requests
- * of the SLAMWARE Control Bus (docs/protocol.md §5) with constant values and a robot that only
- * exists as two wheel odometers, which makes the motion commands observable (and the motor
- * watchdog with them).
- *
- * Everything about the board is behind c/ports/port.h; the UART touches this file in exactly two
- * functions, uart_write() and port_uart_received(). The same file runs on a host (a pty, see
- * host_port.c) and on every board of c/ports/. What the stack does without being asked (error
- * answers, request validation, the watchdog, the inter-byte timeout, SYNC/ECHO, POLL_BASE_CMD and
- * HEALTH_MGMT) is listed in ctrlbus/base.h. */
+ * of the SLAMWARE Control Bus (docs/protocol.md §5) with constants and a robot that exists only as
+ * two wheel odometers, enough to make motion commands and the motor watchdog observable.
+ * The board is behind c/ports/port.h, and the UART touches this file in two functions only,
+ * uart_write() and port_uart_received(): the same file runs on a host (host_port.c, a pty) and on
+ * every board of c/ports/. What the stack does by itself (error answers, validation, watchdog,
+ * inter-byte timeout, SYNC/ECHO, POLL_BASE_CMD, HEALTH_MGMT) is listed in ctrlbus/base.h. */
 #include <stdint.h>
 
 #include "ctrlbus/base.h"
@@ -62,7 +59,7 @@ static void robot_advance(void)
                                    (float)right_um / 1000.0f, (float)WHEEL_TRACK_MM);
 }
 
-/* ---- the handlers: one per request the application answers ------------------------------------ */
+/* ---- the handlers: one per request the application answers; the stack zeroes *out first --- */
 
 static int32_t connect_info(void *context, ctrlbus_connect_base_answer_t *out)
 {
@@ -79,17 +76,15 @@ static int32_t connect_info(void *context, ctrlbus_connect_base_answer_t *out)
 
 static int32_t base_config(void *context, ctrlbus_get_base_conf_answer_t *out)
 {
-    (void)context;
-    out->base_type = 0; /* round */
+    (void)context; /* round (type 0), two-wheel differential (motor type 0), no sensor, no bumper */
     out->base_radius_mm_q8 = 170u * 256u;
-    out->motor_type = 0; /* two-wheel differential; no distance sensor, no bumper */
     return CTRLBUS_OK;
 }
 
 static int32_t status(void *context, ctrlbus_get_base_status_answer_t *out)
 {
     (void)context;
-    out->battery_percent = 80;
+    out->battery_percent = 80; /* not charging */
     return CTRLBUS_OK;
 }
 
@@ -104,8 +99,7 @@ static int32_t motor_data(void *context, ctrlbus_get_base_motor_data_answer_t *o
 
 static int32_t sensor_data(void *context, ctrlbus_get_base_sensor_data_answer_t *out)
 {
-    (void)context;
-    (void)out; /* no sensor: 16 zero distances */
+    (void)context, (void)out; /* no sensor: 16 zero distances */
     return CTRLBUS_OK;
 }
 
@@ -118,16 +112,16 @@ static int32_t bumper_data(void *context, ctrlbus_get_base_bumper_data_answer_t 
 
 static int32_t charger_data(void *context, ctrlbus_get_charger_data_answer_t *out)
 {
-    (void)context;
-    (void)out; /* no beacon, no probe */
+    (void)context, (void)out; /* no beacon, no probe */
     return CTRLBUS_OK;
 }
 
+/* SET_BASE_MOTOR, and the watchdog's stop: the stack's limits keep both within MAX_WHEEL_MM_S. */
 static int32_t set_wheel_speeds(void *context, int32_t left_mm_s, int32_t right_mm_s)
 {
     (void)context;
     robot_advance();
-    robot.left_mm_s = left_mm_s; /* the stack's limits keep both within MAX_WHEEL_MM_S */
+    robot.left_mm_s = left_mm_s;
     robot.right_mm_s = right_mm_s;
     return CTRLBUS_OK;
 }
