@@ -10,9 +10,12 @@ Cortex-M0+ board.
 
 from __future__ import annotations
 
+import re
 import shutil
 import socket
 import subprocess
+import tempfile
+import time
 from pathlib import Path
 
 import pytest
@@ -33,6 +36,9 @@ QEMU = {
 TOOLS = ("avr-gcc", "arm-none-eabi-gcc", "riscv64-unknown-elf-gcc", "qemu-system-avr", "qemu-system-arm",
          "qemu-system-riscv32")  # fmt: skip
 ATMEGA328P_FLASH, ATMEGA328P_RAM = 32 * 1024, 2 * 1024
+AVR_DATA_SPACE = 0x800000  # where QEMU's AVR model maps the data memory (RAM at +0x100)
+AVR_RAM_END = 0x8FF  # ATmega328P's last RAM address
+STACK_PAINT = 0xC5  # what c/ports/uno/port.c paints the free RAM with before main()
 
 
 @pytest.fixture(scope="module")
@@ -59,10 +65,13 @@ def free_port() -> int:
 
 @pytest.mark.parametrize("board", sorted(QEMU))
 def test_minimal_base_passes_the_checker_on(board: str, port_images: Path, tmp_path: Path) -> None:
+    image = port_images / board / "minimal_base-qemu.elf"
     port = free_port()
+    monitor = Path(tempfile.mkdtemp(prefix="ctrlbus-mon-")) / "monitor.sock"  # short: max 107 bytes
     command = [
-        *QEMU[board], str(port_images / board / "minimal_base-qemu.elf"),
-        "-display", "none", "-monitor", "none", "-nodefaults",
+        *QEMU[board], str(image),
+        "-display", "none", "-nodefaults",
+        "-monitor", f"unix:{monitor},server=on,wait=off",
         # nodelay: QEMU writes byte by byte, which Nagle's algorithm would hold back
         "-chardev", f"socket,id=uart,host=127.0.0.1,port={port},server=on,wait=off,nodelay=on",
         "-serial", "chardev:uart",
@@ -71,8 +80,36 @@ def test_minimal_base_passes_the_checker_on(board: str, port_images: Path, tmp_p
     try:
         connect_tcp_when_listening(port, qemu)
         assert_checker_passes(f"socket://127.0.0.1:{port}", tmp_path / "report.json", qemu.describe)
+        if board == "uno":
+            # After a whole checker run: the static RAM and the deepest stack still fit in 2 KB.
+            _text, data, bss = sections("avr-size", image)
+            stack = avr_stack_high_water(monitor, image, qemu)
+            assert data + bss + stack <= ATMEGA328P_RAM, f"static RAM {data + bss} B + stack {stack} B"
     finally:
         qemu.stop()
+        shutil.rmtree(monitor.parent, ignore_errors=True)
+
+
+def avr_stack_high_water(monitor: Path, image: Path, qemu: Process) -> int:
+    """How deep the stack of the running AVR image has been, in bytes: the painted free RAM above
+    .bss, read through QEMU's monitor, up to its lowest byte that no longer holds the paint."""
+    symbols = subprocess.run(["avr-nm", str(image)], capture_output=True, text=True, check=True).stdout
+    end = next(int(line.split()[0], 16) for line in symbols.splitlines() if line.endswith(" _end"))
+    start = end - AVR_DATA_SPACE
+    count = AVR_RAM_END + 1 - start
+    with socket.socket(socket.AF_UNIX) as sock:
+        sock.connect(str(monitor))
+        sock.sendall(f"xp /{count}xb 0x{AVR_DATA_SPACE + start:x}\nquit\n".encode())
+        output = b""
+        deadline = time.monotonic() + 10
+        while chunk := sock.recv(65536):
+            output += chunk
+            assert time.monotonic() < deadline, f"QEMU's monitor did not finish: {qemu.describe()}"
+    ram = [int(value, 16) for line in re.findall(rb"^[0-9a-f]{16}: (.*)$", output, re.M)
+           for value in line.decode().split()]  # fmt: skip
+    assert len(ram) == count, f"read {len(ram)} of {count} RAM bytes from the monitor"
+    untouched = next((index for index, value in enumerate(ram) if value != STACK_PAINT), count)
+    return count - untouched
 
 
 def sections(size_tool: str, image: Path) -> tuple[int, int, int]:

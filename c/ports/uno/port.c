@@ -39,6 +39,19 @@
 /* Less than the stack's receive ring holds (the minimal base gives it 64 bytes on this board). */
 #define RX_POLL_BATCH 32u
 
+/* The free RAM (from the end of .bss to the top of RAM) is painted before main() runs, so that the
+ * stack's high-water mark can be read later (a debugger, or QEMU's monitor in the tests: the
+ * lowest byte that no longer holds the paint). Section .init3 runs after the stack pointer is set
+ * and before anything is pushed; a naked function falls through to the next init section. */
+#define STACK_PAINT 0xC5u
+extern uint8_t _end; /* the end of .bss, from avr-libc's linker script */
+__attribute__((naked, used, section(".init3"))) static void paint_free_ram(void)
+{
+    for (uint8_t *byte = &_end; byte <= (uint8_t *)RAMEND; byte++) {
+        *byte = STACK_PAINT;
+    }
+}
+
 static uint16_t clock_last_count;
 static uint16_t clock_rest; /* count * 8 not yet turned into a millisecond, below 125 */
 static uint32_t clock_ms;
