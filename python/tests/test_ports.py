@@ -4,8 +4,8 @@ UART on TCP, and `ctrlbus check` passes against it.
 
 The images are built here with c/ports/Makefile (make -C c/ports), so `make test` always runs the
 current sources; QEMU runs the `minimal_base-qemu.elf` image of each board (c/ports/README.md says
-how it differs from the chip's). The Cortex-M0+ image is built and sized only: QEMU has no
-Cortex-M0+ board.
+how it differs from the chip's), and on the 32-bit boards also `simbase-qemu.elf`, the simulated
+base. The Cortex-M0+ image is built and sized only: QEMU has no Cortex-M0+ board.
 """
 
 from __future__ import annotations
@@ -63,9 +63,14 @@ def free_port() -> int:
         return port
 
 
-@pytest.mark.parametrize("board", sorted(QEMU))
-def test_minimal_base_passes_the_checker_on(board: str, port_images: Path, tmp_path: Path) -> None:
-    image = port_images / board / "minimal_base-qemu.elf"
+RUNS = [(board, "minimal_base") for board in sorted(QEMU)] + [
+    (board, "simbase") for board in ("microbit", "netduinoplus2", "sifive_e")
+]
+
+
+@pytest.mark.parametrize(("board", "application"), RUNS)
+def test_checker_passes_on(board: str, application: str, port_images: Path, tmp_path: Path) -> None:
+    image = port_images / board / f"{application}-qemu.elf"
     port = free_port()
     monitor = Path(tempfile.mkdtemp(prefix="ctrlbus-mon-")) / "monitor.sock"  # short: max 107 bytes
     command = [
