@@ -20,6 +20,7 @@ from pathlib import Path
 
 import pytest
 from base_harness import REPO, Process
+from test_dashboard_browser import free_port
 from test_firmware import connect_tcp_when_listening
 from test_minimal_base import assert_checker_passes
 
@@ -53,14 +54,6 @@ def port_images() -> Path:
     if build.returncode != 0:
         pytest.fail(f"port build failed:\n{build.stdout}\n{build.stderr}")
     return PORTS_BUILD
-
-
-def free_port() -> int:
-    """A free TCP port on 127.0.0.1; QEMU binds it right after."""
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        port: int = probe.getsockname()[1]
-        return port
 
 
 RUNS = [(board, "minimal_base") for board in sorted(QEMU)] + [
