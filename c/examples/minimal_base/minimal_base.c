@@ -12,7 +12,8 @@
 #include "ctrlbus/diffdrive.h"
 #include "port.h"
 
-/* Buffer sizes: the defaults are the reference base's; an 8-bit MCU passes smaller ones. */
+/* The receive ring holds what arrives between two polls (the Uno's port passes 64 bytes); the
+ * frame buffer is the largest request accepted, the reference base's 512 bytes. */
 #ifndef MINIMAL_BASE_RX_RING_SIZE
 #define MINIMAL_BASE_RX_RING_SIZE 256u
 #endif
