@@ -20,7 +20,7 @@
  * ring only ever holds one chunk (it must be larger than this). */
 #define READ_CHUNK 64u
 
-static posix_link_t link;
+static posix_link_t pty_link;
 static uint32_t start_ms;
 
 static uint32_t monotonic_ms(void)
@@ -33,12 +33,12 @@ static uint32_t monotonic_ms(void)
 void port_init(void)
 {
     char error[256];
-    if (posix_link_open_pty(&link, error, sizeof error) != 0) {
+    if (posix_link_open_pty(&pty_link, error, sizeof error) != 0) {
         (void)fprintf(stderr, "minimal_base: error: %s\n", error);
         exit(2);
     }
     start_ms = monotonic_ms();
-    (void)printf("pty: %s\n", link.name);
+    (void)printf("pty: %s\n", pty_link.name);
     (void)fflush(stdout);
 }
 
@@ -49,16 +49,16 @@ uint32_t port_millis(void)
 
 void port_uart_write(const uint8_t *data, size_t size)
 {
-    posix_link_write(&link, data, size);
+    posix_link_write(&pty_link, data, size);
 }
 
 void port_idle(void)
 {
     uint8_t received[READ_CHUNK];
-    if (posix_link_wait(&link, IDLE_MS) < 0) {
+    if (posix_link_wait(&pty_link, IDLE_MS) < 0) {
         return; /* a signal; the next call waits again */
     }
-    long got = posix_link_read(&link, received, sizeof received);
+    long got = posix_link_read(&pty_link, received, sizeof received);
     for (long i = 0; i < got; i++) {
         port_uart_received(received[i]);
     }
