@@ -19,7 +19,9 @@
  *     taken when the next one comes.
  * So the QEMU image spins instead of sleeping, and receives by polling: port_idle() moves what the
  * USART holds into the stack, at most RX_POLL_BATCH bytes per main-loop turn, and QEMU keeps the
- * rest waiting in the host, as it does while UDR0 is full. */
+ * rest waiting in the host, as it does while UDR0 is full. (Pacing the receive interrupt instead,
+ * disabled by the handler and enabled again by port_idle(), was tried: an interrupt raised while
+ * the handler runs is then sometimes taken only when the next byte comes, as above.) */
 #include <avr/interrupt.h>
 #include <avr/io.h>
 #include <avr/sleep.h>
