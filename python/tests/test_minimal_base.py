@@ -21,10 +21,12 @@ BINARY = REPO / "build" / "c" / "examples" / "minimal_base" / "minimal_base"
 CHECKS_PASSING = 20
 
 
-def assert_checker_passes(port: str, report: Path, describe: Callable[[], str]) -> dict[str, int]:
+def assert_checker_passes(
+    port: str, report: Path, describe: Callable[[], str], extra_args: tuple[str, ...] = ()
+) -> dict[str, int]:
     """Run `ctrlbus check` against `port`; every check must pass, none warn. Returns the summary."""
     result = subprocess.run(
-        [sys.executable, "-m", "ctrlbus", "check", "--port", port, "--json", str(report)],
+        [sys.executable, "-m", "ctrlbus", "check", "--port", port, "--json", str(report), *extra_args],
         capture_output=True,
         text=True,
         timeout=300,
