@@ -7,7 +7,7 @@ BUILD := build
 JOBS  ?= 2
 DEMO_ARGS ?=
 
-.PHONY: all setup c-build firmware c-test c-test-asan lint py-test test demo size bench fuzz fuzz-smoke clean
+.PHONY: all setup c-build firmware ports c-test c-test-asan lint py-test test demo size bench fuzz fuzz-smoke clean
 
 all: test
 
@@ -23,6 +23,11 @@ c-build: setup
 # Cortex-M3 firmware for QEMU's mps2-an385 board (arm-none-eabi-gcc).
 firmware: setup
 	@$(MAKE) --no-print-directory -C c/firmware O=$(CURDIR)/$(BUILD)/firmware
+
+# The minimal base on the emulated MCUs of c/ports/ (ATmega328P, nRF51, STM32F405, FE310) and
+# its Cortex-M0+ build; `make -C c/ports sizes` prints their flash and RAM.
+ports: setup
+	@$(MAKE) --no-print-directory -C c/ports O=$(CURDIR)/$(BUILD)/ports
 
 c-test: c-build
 	@ctest --test-dir $(BUILD)/c --output-on-failure -j $(JOBS)
@@ -40,7 +45,7 @@ lint: setup
 	@cd bench && MYPYPATH=../python/src ../$(VENV)/bin/mypy --config-file ../python/pyproject.toml --explicit-package-bases .
 
 # Python tests run against the C builds too (host base, firmware), so build those first.
-py-test: c-build firmware
+py-test: c-build firmware ports
 	@cd python && ../$(VENV)/bin/pytest -q
 
 test: c-test c-test-asan lint py-test fuzz-smoke pictures

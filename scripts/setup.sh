@@ -8,6 +8,8 @@ cd "$(dirname "$0")/.."
 APT_PACKAGES=(
   cmake ninja-build gcc make python3-venv
   qemu-system-arm gcc-arm-none-eabi libnewlib-arm-none-eabi   # Cortex-M3 firmware under QEMU
+  qemu-system-misc gcc-avr avr-libc binutils-avr              # c/ports: ATmega328P (and RV32) under QEMU
+  gcc-riscv64-unknown-elf picolibc-riscv64-unknown-elf        # c/ports: SiFive E (RV32IMAC)
   clang libclang-rt-14-dev                                     # libFuzzer + sanitizers
   valgrind                                                     # callgrind benchmarks
   tshark                                                       # Wireshark dissector test

@@ -478,7 +478,8 @@ static uint16_t answer_request(ctrlbus_base_t *base, const ctrlbus_request_t *re
     case CTRLBUS_REQ_HEALTH_GET_HEALTH:
         for (uint8_t i = 0; i < base->health_count; i++) {
             uint32_t level = health_code_at(base, i) >> 24;
-            answer.as.health_get_health.flags |= (uint8_t)(level & HEALTH_LEVEL_BITS);
+            answer.as.health_get_health.flags =
+                (uint8_t)(answer.as.health_get_health.flags | (level & HEALTH_LEVEL_BITS));
         }
         answer.as.health_get_health.error_count = base->health_count;
         result = CTRLBUS_OK;

@@ -349,8 +349,12 @@ int32_t ctrlbus_decoder_init(ctrlbus_decoder_t *decoder, uint8_t *buffer, size_t
     }
     decoder->buffer = buffer;
     decoder->stats = stats;
+#if SIZE_MAX > CTRLBUS_FRAME_MAX
     decoder->max_frame =
         buffer_size > CTRLBUS_FRAME_MAX ? CTRLBUS_FRAME_MAX : (uint32_t)buffer_size;
+#else /* a 16-bit size_t (AVR): no buffer can exceed the largest frame */
+    decoder->max_frame = (uint32_t)buffer_size;
+#endif
     decoder->timeout_ms = timeout_ms;
     decoder->last_byte_ms = 0;
     if (stats != NULL) {
@@ -481,7 +485,7 @@ static ctrlbus_rx_t scan(ctrlbus_decoder_t *d, uint32_t pos)
                 failure = CTRLBUS_RX_OVERSIZE;
             } else if (avail >= size) {
                 uint32_t last = d->start + size - 1u;
-                if (xor_bytes(d->checksum, buf + pos, last - pos) != buf[last]) {
+                if (xor_bytes(d->checksum, buf + pos, (size_t)(last - pos)) != buf[last]) {
                     failure = CTRLBUS_RX_CHECKSUM_ERROR;
                 } else if (len_field == 0) {
                     /* LEN = 0: well-formed but without a command; its bytes are discarded. */
@@ -500,7 +504,7 @@ static ctrlbus_rx_t scan(ctrlbus_decoder_t *d, uint32_t pos)
         if (failure == CTRLBUS_RX_NONE) {
             if (!(d->state & STATE_FLUSHING)) {
                 /* Incomplete: remember the checksum so far and wait for more bytes. */
-                d->checksum = xor_bytes(d->checksum, buf + pos, d->end - pos);
+                d->checksum = xor_bytes(d->checksum, buf + pos, (size_t)(d->end - pos));
                 return CTRLBUS_RX_NONE;
             }
             failure = CTRLBUS_RX_TIMEOUT; /* rule 5: a stale partial frame */
@@ -845,7 +849,7 @@ IN_LINE static ctrlbus_rx_t hand_out(ctrlbus_decoder_t *d, ctrlbus_frame_t *fram
             frame->is_long = header == 3u;
             frame->cmd = bytes[header];
             frame->payload = bytes + header + 1u;
-            frame->payload_len = len_field - 1u;
+            frame->payload_len = (size_t)(len_field - 1u);
         }
         d->start += header + len_field + 1u;
     }

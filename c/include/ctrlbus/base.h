@@ -42,16 +42,6 @@
  * run inside ctrlbus_base_poll(), in the main loop; they may call the health and command-queue
  * functions below, but never ctrlbus_base_poll() itself.
  *
- * Errors answered by the stack itself (docs/protocol.md §8): ERROR 0x0010 once per garbage gap,
- * 0x0020 for a request longer than frame_buffer, 0x0040 for a checksum mismatch (the frame is never
- * executed; 0x00C0 with reference_checksum_code), 0x8001 for an empty frame or a wrong payload
- * length (the reference does not check lengths; ctrlbus does, because a short SET_BASE_MOTOR would
- * otherwise move a wheel on bytes nobody sent), 0x8000 for unknown commands, requests, argument
- * values and unsupported requests, 0x8002 for an unknown HEALTH sub-command, a bad health index or
- * code, and failing handlers. A frame cut by the inter-byte timeout is not answered. Answers go
- * out in long frames (0x50) by default, as the reference sends them; standard_answers sends a
- * standard frame whenever the payload fits (254 bytes); a longer answer is always a long frame.
- *
  * Concurrency and memory ordering. ctrlbus_base_feed() is the only function that may run in an
  * interrupt (or another thread); everything else belongs to the main loop, one context. The ring
  * has two indices, each written by one side only: rx_head by feed, rx_tail by poll. Both are
@@ -87,13 +77,64 @@
  * of the request being answered, up to GET_BASE_CONF's 272 bytes, lives there while it is
  * written).
  *
- * Behaviour: the behaviour list of docs/base-framework.md, which the Python stack shares, with
- * these differences of form: time is in integer milliseconds; the watchdog acts at the first poll
- * after its deadline (the Python stack moves the application's time to the deadline itself; here
- * the application has no time of its own); the BASE_CMD hooks run right after the answer was
- * written instead of at the next call; the health list and the command queue hold what the
- * caller's storage holds (Python: 16 each); the counters are the ones of
- * ctrlbus_base_counters_t and the decoder's (Python counts more).
+ * Behaviour: what the stack does by itself (docs/protocol.md has the wire rules it follows):
+ *  1. Order. ctrlbus_base_poll() runs the motor watchdog (6), then takes the bytes that were in
+ *     the ring when it started through the stream decoder (docs/protocol.md §7; the largest frame
+ *     is frame_buffer_size, the inter-byte timeout frame_timeout_ms), and writes one answer per
+ *     request or decoder event, in stream order, before it returns.
+ *  2. Decoder events. Bytes outside any frame: ERROR 0x0010, once per garbage gap. A frame longer
+ *     than frame_buffer: 0x0020, as soon as its header announces it. A checksum mismatch: 0x0040
+ *     (0x00C0 with reference_checksum_code), and the frame is never executed. An empty frame
+ *     (LEN 0): 0x8001. A frame cut by the inter-byte timeout: no answer.
+ *  3. SYNC and ECHO: answered with a byte-for-byte copy of the request frame (its flag kept),
+ *     written from the frame buffer, any size up to frame_buffer_size. No handler runs; they do
+ *     not feed the watchdog.
+ *  4. Validation, in this order, before any handler runs: an unknown CMD (answer CMDs included):
+ *     0x8000; CTRL_BUS without a request code: 0x8001; an unknown request code: 0x8000;
+ *     HEALTH_MGMT without a sub-command: 0x8001, with an unknown one: 0x8002; a wrong payload
+ *     length for the request: 0x8001 (the reference does not check lengths; ctrlbus does, because
+ *     a short SET_BASE_MOTOR would otherwise move a wheel on bytes nobody sent); CONNECT_BASE
+ *     version other than 1, GET_CHARGER_DATA type other than 0, BASE_CMD sub-command other than 1
+ *     or 2: 0x8000; GET_AUXILIARY_ANCHOR (0x35): always 0x8000; a NULL handler: 0x8000.
+ *  5. Handler results (see "Handlers" above): CTRLBUS_OK sends OK with the struct the handler
+ *     filled, once the codec has accepted it; a struct it refuses (text that is not ASCII, a
+ *     count over 8, ...) is a failure found before any byte goes out: 0x8002.
+ *     CTRLBUS_ERR_UNSUPPORTED sends 0x8000, any other negative value 0x8002. The stack carries on
+ *     with the next request.
+ *  6. Motor watchdog. Every CTRL_BUS frame that passes its checksum feeds it, even one that is
+ *     then refused; SYNC, ECHO and BASE_CMD do not. It is armed at ctrlbus_base_init(). At the
+ *     first poll more than watchdog_ms after the last feed it calls stop_motors (default:
+ *     set_wheel_speeds(context, 0, 0)), once per silence. If the last motion command handed to
+ *     the application was not zero (a wheel speed, or vx, vy or omega), that stop is a trip:
+ *     counted in watchdog_trips, and the health warning CTRLBUS_HEALTH_WATCHDOG_TRIPPED is
+ *     registered, where it stays until the Core clears it.
+ *  7. Velocity limits (config->limits, ctrlbus_base_limits_t): applied before the handler runs,
+ *     counted in clamped_commands, still answered OK.
+ *  8. Requests answered by the stack alone: POLL_BASE_CMD / POLL_BASE_ANS_CMD from the command
+ *     queue (ctrlbus_base_queue_command(); the oldest command until the Core takes it; nothing
+ *     pending: per the profile); HEALTH_MGMT from the health registry (GET_HEALTH: the OR of the
+ *     entries' level bits and their count; GET_ERROR of an index out of range and CLR_ERROR of a
+ *     code not registered: 0x8002); SEND_EVENT: OK for every code, after on_event if given;
+ *     BASE_CMD REBOOT / ENTER_DFU: OK when the hook is given, which runs once the answer is out.
+ *  9. Answers: OK and ERROR in long frames (0x50) as the reference sends them, unless
+ *     standard_answers; answer sizes per the profile (ctrlbus_base_profile_t).
+ *
+ * What the application does:
+ *   - the platform: ctrlbus_base_feed() from the UART receive interrupt, ctrlbus_base_poll()
+ *     from the main loop every few milliseconds with a millisecond clock, and a write callback
+ *     that takes every byte (c/examples/minimal_base/ is a complete base in one file);
+ *   - per request, one handler filling the answer struct with what the robot knows. The 13
+ *     requests every base must answer (docs/protocol.md §5) need connect_info, base_config,
+ *     status, motor_data, sensor_data, bumper_data, charger_data, set_wheel_speeds and
+ *     set_velocity; POLL_BASE_CMD, POLL_BASE_ANS_CMD, SEND_EVENT and HEALTH_MGMT need none;
+ *   - the robot itself: driving and stopping the motors, odometry (the wheel totals of
+ *     motor_data, the deadreckon deltas of set_velocity: ctrlbus/diffdrive.h helps), the local
+ *     bumper safety and stall detection, and the robot's own health conditions (battery, motors,
+ *     sensors), registered and cleared with ctrlbus_base_health_add() / _clear().
+ * The Python stack (ctrlbus.base) behaves the same, in these forms: time in integer milliseconds;
+ * the watchdog acts at the first poll after its deadline; the BASE_CMD hooks run right after the
+ * answer was written; the health list and command queue hold what the caller's storage holds;
+ * the counters are ctrlbus_base_counters_t and the decoder's.
  */
 #ifndef CTRLBUS_BASE_H
 #define CTRLBUS_BASE_H
