@@ -37,13 +37,13 @@ from findings import Findings
 
 NAME = "footprint"
 TITLE = "Footprint from make size (cortex-m0plus/m3/m4)"
-GOAL = "base stack ≤ 2 KiB .text on cortex-m0plus, ≤ 64 B instance state, no transmit buffer"
+GOAL = "base stack ≤ 4 KiB .text on cortex-m0plus (default configuration), ≤ 64 B instance state, no transmit buffer"
 
 SIZE_SCRIPT = REPO / "scripts" / "size.sh"
 CROSS = "arm-none-eabi-"
 CPUS = {FULL: ["cortex-m0plus", "cortex-m3", "cortex-m4"], SMOKE: ["cortex-m0plus"]}
 GOAL_CPU = "cortex-m0plus"
-TEXT_GOAL = 2048
+TEXT_GOAL = 4096
 STATE_GOAL = 64
 # scripts/size.sh's compile flags, and the layer whose bytes are broken down.
 CFLAGS = ["-std=c99", "-Os", "-ffunction-sections", "-fdata-sections", "-Wall", "-Wextra", "-Werror"]
