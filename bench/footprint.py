@@ -37,7 +37,10 @@ from findings import Findings
 
 NAME = "footprint"
 TITLE = "Footprint from make size (cortex-m0plus/m3/m4)"
-GOAL = "base stack ≤ 4 KiB .text on cortex-m0plus (default configuration), ≤ 64 B instance state, no transmit buffer"
+GOAL = (
+    "base stack ≤ 4 KiB .text on cortex-m0plus (default configuration), ≤ 64 B instance state, "
+    "no transmit buffer"
+)
 
 SIZE_SCRIPT = REPO / "scripts" / "size.sh"
 CROSS = "arm-none-eabi-"

@@ -6,16 +6,17 @@
     stack_usage.py OBJDUMP ELF ROOT SU_FILE...
 
 Method: every function's own frame comes from the .su files gcc writes with -fstack-usage
-(static, or bounded: the bound is used; dynamic frames are reported as unbounded). Functions
+(static, or bounded: the bound is used; a dynamic frame is an error, as unbounded). Functions
 without a .su entry (libgcc, libc) get the frame their prologue sets up, read from the
 disassembly (pushes, `sub sp,#N`, `addi sp,sp,-N`). On AVR a call also pushes its 2-byte return
-address, which the .su figures leave out: 2 bytes are added per frame there. The call graph is read from the disassembly of the linked ELF: an
-instruction that names another function symbol (a call, or a tail branch) is an edge. Indirect
-calls are of two kinds: into the library's own answer-field writers (`*_fields`, called through a
-pointer by the answer encoders), which become edges to every one of them; and into the
-application (handlers, the write callback), whose own stack is not the library's and is reported
-as "plus the callbacks". The result is the largest sum of frames along any path from ROOT
-(recursion would be reported as an error: the library has none).
+address, which the .su figures leave out: 2 bytes are added per frame there.
+
+The call graph is read from the disassembly of the linked ELF: an instruction that names another
+function symbol (a call, or a tail branch) is an edge. Indirect calls are of two kinds: into the
+library's own answer-field writers (`*_fields`, called through a pointer by write_ok), which
+become edges to every one of them; and into the application (handlers, the write callback),
+whose own stack is not the library's and comes on top. The result is the largest sum of frames
+along any path from ROOT (recursion is an error: the library has none).
 
 Prints one line: `<bytes> <path>` with the path's functions joined by " > ".
 """
@@ -25,7 +26,7 @@ from __future__ import annotations
 import re
 import subprocess
 import sys
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 
 LIBRARY_INDIRECT_TARGETS = re.compile(r"_fields$")
@@ -55,9 +56,7 @@ def prologue_frame(body: list[str]) -> int:
     for line in body[:12]:
         if m := _PUSH_ARM.search(line):
             total += 4 * len(m.group(1).split(","))
-        elif m := _SUB_SP_ARM.search(line):
-            total += int(m.group(1))
-        elif m := _ADDI_SP_RISCV.search(line):
+        elif (m := _SUB_SP_ARM.search(line)) or (m := _ADDI_SP_RISCV.search(line)):
             total += int(m.group(1))
         elif _PUSH_AVR.search(line):
             total += 1
@@ -109,7 +108,7 @@ def main() -> int:
             return size
         return prologue_frame(bodies[name])
 
-    @lru_cache(maxsize=None)
+    @cache
     def worst(name: str, depth: int = 0) -> tuple[int, tuple[str, ...]]:
         if depth > 64:
             raise SystemExit(f"stack_usage.py: recursion through {name}")
