@@ -13,7 +13,7 @@ address, which the .su figures leave out: 2 bytes are added per frame there.
 
 The call graph is read from the disassembly of the linked ELF: an instruction that names another
 function symbol (a call, or a tail branch) is an edge. Indirect calls are of two kinds: into the
-library's own answer-field writers (`*_fields`, called through a pointer by write_ok), which
+library's own answer-field writers (`*_fields`, called through a pointer by ctrlbus_codec_write_ok), which
 become edges to every one of them; and into the application (handlers, the write callback),
 whose own stack is not the library's and comes on top. The result is the largest sum of frames
 along any path from ROOT (recursion is an error: the library has none).
@@ -88,7 +88,7 @@ def main() -> int:
                 if ref != name and ref in bodies:
                     callees.add(ref)
             if _INDIRECT.search(line):
-                if name == "write_ok":
+                if name.endswith("write_ok"):
                     callees.update(library_targets)
                 else:
                     app_callbacks.add(name)

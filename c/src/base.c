@@ -6,6 +6,8 @@
 
 #include "ctrlbus/diffdrive.h"
 
+#include "codec.h"
+
 /* base->flags */
 #define FLAG_WATCHDOG_EXPIRED 0x01u /* the current silence has been acted on */
 #define FLAG_MOTION_COMMANDED 0x02u /* the last motion command passed on was not zero */
@@ -523,143 +525,163 @@ static void poll_answer(const ctrlbus_base_t *base, ctrlbus_poll_base_cmd_answer
         out->has_command || sdk2020(base->config) ? CTRLBUS_POLL_BASE_CMD_ANSWER_SIZE : 0u;
 }
 
+/* Where a request's answer struct lives while its handler fills it and it is written. Only one
+ * member is in use per request, and only that member is zeroed: this is storage, not a tagged
+ * answer (nothing switches on it again). Its size is GET_BASE_CONF's answer, the largest. */
+typedef union {
+    ctrlbus_connect_base_answer_t connect_base;
+    ctrlbus_get_base_conf_answer_t get_base_conf;
+    ctrlbus_get_base_conf_adv_answer_t get_base_conf_adv;
+    ctrlbus_get_base_status_answer_t get_base_status;
+    ctrlbus_get_base_motor_data_answer_t get_base_motor_data;
+    ctrlbus_get_base_sensor_data_answer_t get_base_sensor_data;
+    ctrlbus_get_base_bumper_data_answer_t get_base_bumper_data;
+    ctrlbus_get_charger_data_answer_t get_charger_data;
+    ctrlbus_set_v_and_get_deadreckon_answer_t set_v_and_get_deadreckon;
+    ctrlbus_poll_base_cmd_answer_t poll_base_cmd;
+    ctrlbus_health_get_health_answer_t health_get_health;
+    ctrlbus_health_get_error_answer_t health_get_error;
+} answer_storage_t;
+
 /* Runs the application's part of a validated request and writes its answer: one switch on the
- * request, each case with its own answer struct (zeroed: handlers fill in what they know) written
- * by its layout's encoder, which checks it and computes its size once. Returns 0 when answered,
- * else the ERROR code to answer with (nothing written yet then). */
+ * request; its case zeroes and fills its own answer struct, checks it and computes its size once
+ * (the layout's _size, or the constant), and names its layout's field writer; one common write
+ * streams the frame. Returns 0 when answered, else the ERROR code to answer with (nothing
+ * written yet then). */
 static uint16_t answer_request(ctrlbus_base_t *base, const ctrlbus_request_t *request,
                                ctrlbus_sink_t *sink, uint32_t now_ms)
 {
     const ctrlbus_base_config_t *config = base->config;
     void *context = config->context;
-    ctrlbus_frame_type_t type = answer_type(base);
+    answer_storage_t out;
     int32_t result = CTRLBUS_ERR_UNSUPPORTED; /* the handler's; unsupported while it is missing */
-    int32_t written = 0;                      /* the encoder's */
+    int32_t size = 0;                         /* the OK payload's; negative: a struct refused */
+    ctrlbus_codec_put_fn put = NULL;          /* its fields; NULL: an empty OK */
     switch (request->kind) {
     case CTRLBUS_REQ_CONNECT_BASE:
         if (config->connect_info != NULL) {
-            ctrlbus_connect_base_answer_t out;
-            memset(&out, 0, sizeof out);
-            result = config->connect_info(context, &out);
-            out.has_firmware_version_suffix = sdk2020(config); /* the profile decides the size */
-            written = result < 0 ? 0 : ctrlbus_connect_base_answer_write(sink, &out, type);
+            memset(&out.connect_base, 0, sizeof out.connect_base);
+            result = config->connect_info(context, &out.connect_base);
+            out.connect_base.has_firmware_version_suffix = sdk2020(config); /* the profile's size */
+            size = ctrlbus_connect_base_answer_size(&out.connect_base);
+            put = ctrlbus_codec_connect_base_fields;
         }
         break;
     case CTRLBUS_REQ_GET_BASE_CONF:
         if (config->base_config != NULL) {
-            ctrlbus_get_base_conf_answer_t out;
-            memset(&out, 0, sizeof out);
-            result = config->base_config(context, &out);
-            written = result < 0 ? 0 : ctrlbus_get_base_conf_answer_write(sink, &out, type);
+            memset(&out.get_base_conf, 0, sizeof out.get_base_conf);
+            result = config->base_config(context, &out.get_base_conf);
+            size = ctrlbus_get_base_conf_answer_size(&out.get_base_conf);
+            put = ctrlbus_codec_get_base_conf_fields;
         }
         break;
 #if CTRLBUS_CONFIG_CONF_ADV
     case CTRLBUS_REQ_GET_BASE_CONF_ADV:
         if (config->binary_config != NULL && config->binary_config_size != 0u) {
-            ctrlbus_get_base_conf_adv_answer_t out = {config->binary_config,
-                                                      config->binary_config_size};
+            out.get_base_conf_adv.blob = config->binary_config;
+            out.get_base_conf_adv.blob_len = config->binary_config_size; /* init checked it */
             result = CTRLBUS_OK;
-            written = ctrlbus_get_base_conf_adv_answer_write(sink, &out, type);
+            size = config->binary_config_size;
+            put = ctrlbus_codec_get_base_conf_adv_fields;
         }
         break;
 #endif
     case CTRLBUS_REQ_GET_BASE_STATUS:
         if (config->status != NULL) {
-            ctrlbus_get_base_status_answer_t out = {0, 0};
-            result = config->status(context, &out);
-            written = result < 0 ? 0 : ctrlbus_get_base_status_answer_write(sink, &out, type);
+            memset(&out.get_base_status, 0, sizeof out.get_base_status);
+            result = config->status(context, &out.get_base_status);
+            size = CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE;
+            put = ctrlbus_codec_get_base_status_fields;
         }
         break;
     case CTRLBUS_REQ_GET_BASE_MOTOR_DATA:
         if (config->motor_data != NULL) {
-            ctrlbus_get_base_motor_data_answer_t out = {0, 0, 0};
-            result = config->motor_data(context, &out);
-            written = result < 0 ? 0 : ctrlbus_get_base_motor_data_answer_write(sink, &out, type);
+            memset(&out.get_base_motor_data, 0, sizeof out.get_base_motor_data);
+            result = config->motor_data(context, &out.get_base_motor_data);
+            size = CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE;
+            put = ctrlbus_codec_get_base_motor_data_fields;
         }
         break;
     case CTRLBUS_REQ_GET_BASE_SENSOR_DATA:
         if (config->sensor_data != NULL) {
-            ctrlbus_get_base_sensor_data_answer_t out;
-            memset(&out, 0, sizeof out);
-            result = config->sensor_data(context, &out);
-            written = result < 0 ? 0 : ctrlbus_get_base_sensor_data_answer_write(sink, &out, type);
+            memset(&out.get_base_sensor_data, 0, sizeof out.get_base_sensor_data);
+            result = config->sensor_data(context, &out.get_base_sensor_data);
+            size = CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE;
+            put = ctrlbus_codec_get_base_sensor_data_fields;
         }
         break;
     case CTRLBUS_REQ_GET_BASE_BUMPER_DATA:
         if (config->bumper_data != NULL) {
-            ctrlbus_get_base_bumper_data_answer_t out = {0, 0};
-            result = config->bumper_data(context, &out);
-            if (out.payload_size == 0u || sdk2020(config)) {
-                out.payload_size = CTRLBUS_GET_BASE_BUMPER_DATA_ANSWER_SIZE; /* same value, padded */
+            memset(&out.get_base_bumper_data, 0, sizeof out.get_base_bumper_data);
+            result = config->bumper_data(context, &out.get_base_bumper_data);
+            if (out.get_base_bumper_data.payload_size == 0u || sdk2020(config)) {
+                /* same value, padded */
+                out.get_base_bumper_data.payload_size = CTRLBUS_GET_BASE_BUMPER_DATA_ANSWER_SIZE;
             }
-            written = result < 0 ? 0 : ctrlbus_get_base_bumper_data_answer_write(sink, &out, type);
+            size = ctrlbus_get_base_bumper_data_answer_size(&out.get_base_bumper_data);
+            put = ctrlbus_codec_get_base_bumper_data_fields;
         }
         break;
     case CTRLBUS_REQ_GET_CHARGER_DATA:
         if (config->charger_data != NULL) {
-            ctrlbus_get_charger_data_answer_t out = {0, 0, NULL};
-            result = config->charger_data(context, &out);
-            written = result < 0 ? 0 : ctrlbus_get_charger_data_answer_write(sink, &out, type);
+            memset(&out.get_charger_data, 0, sizeof out.get_charger_data);
+            result = config->charger_data(context, &out.get_charger_data);
+            size = ctrlbus_get_charger_data_answer_size(&out.get_charger_data);
+            put = ctrlbus_codec_get_charger_data_fields;
         }
         break;
     case CTRLBUS_REQ_SET_BASE_MOTOR:
         if (config->set_wheel_speeds != NULL) {
             result = set_wheel_speeds(base, &request->as.set_base_motor);
-            written = result < 0 ? 0 : ctrlbus_ok_answer_write(sink, type);
         }
         break;
     case CTRLBUS_REQ_SET_V_AND_GET_DEADRECKON:
         if (config->set_velocity != NULL) {
-            ctrlbus_set_v_and_get_deadreckon_answer_t out;
-            memset(&out, 0, sizeof out);
-            result = set_velocity(base, request->as.set_v_and_get_deadreckon, &out, now_ms);
-            written =
-                result < 0 ? 0 : ctrlbus_set_v_and_get_deadreckon_answer_write(sink, &out, type);
+            memset(&out.set_v_and_get_deadreckon, 0, sizeof out.set_v_and_get_deadreckon);
+            result = set_velocity(base, request->as.set_v_and_get_deadreckon,
+                                  &out.set_v_and_get_deadreckon, now_ms);
+            size = ctrlbus_set_v_and_get_deadreckon_answer_size(&out.set_v_and_get_deadreckon);
+            put = ctrlbus_codec_set_v_and_get_deadreckon_fields;
         }
         break;
-    case CTRLBUS_REQ_POLL_BASE_CMD: {
-        ctrlbus_poll_base_cmd_answer_t out = {false, 0, 0, 0};
-        poll_answer(base, &out);
+    case CTRLBUS_REQ_POLL_BASE_CMD:
+        memset(&out.poll_base_cmd, 0, sizeof out.poll_base_cmd);
+        poll_answer(base, &out.poll_base_cmd);
         result = CTRLBUS_OK;
-        written = ctrlbus_poll_base_cmd_answer_write(sink, &out, type);
+        size = out.poll_base_cmd.payload_size; /* 0 or 2, consistent by construction */
+        put = ctrlbus_codec_poll_base_cmd_fields;
         break;
-    }
     case CTRLBUS_REQ_POLL_BASE_ANS_CMD:
 #if CTRLBUS_CONFIG_COMMAND_QUEUE
         command_taken(base);
 #endif
         result = CTRLBUS_OK;
-        written = ctrlbus_ok_answer_write(sink, type);
         break;
     case CTRLBUS_REQ_SEND_EVENT:
         result = config->on_event != NULL
                      ? config->on_event(context, request->as.send_event.event)
                      : CTRLBUS_OK;
-        written = result < 0 ? 0 : ctrlbus_ok_answer_write(sink, type);
         break;
-    case CTRLBUS_REQ_HEALTH_GET_HEALTH: {
-        ctrlbus_health_get_health_answer_t out;
-        health_summary(base, &out);
+    case CTRLBUS_REQ_HEALTH_GET_HEALTH:
+        health_summary(base, &out.health_get_health);
         result = CTRLBUS_OK;
-        written = ctrlbus_health_get_health_answer_write(sink, &out, type);
+        size = CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE;
+        put = ctrlbus_codec_health_get_health_fields;
         break;
-    }
-    case CTRLBUS_REQ_HEALTH_GET_ERROR: {
-        ctrlbus_health_get_error_answer_t out;
-        memset(&out, 0, sizeof out);
-        if (!health_entry(base, request->as.health_get_error.index, &out)) {
+    case CTRLBUS_REQ_HEALTH_GET_ERROR:
+        memset(&out.health_get_error, 0, sizeof out.health_get_error);
+        if (!health_entry(base, request->as.health_get_error.index, &out.health_get_error)) {
             return CTRLBUS_WIRE_ERR_OPERATION;
         }
         result = CTRLBUS_OK;
-        written = ctrlbus_health_get_error_answer_write(sink, &out, type);
+        size = ctrlbus_health_get_error_answer_size(&out.health_get_error);
+        put = ctrlbus_codec_health_get_error_fields;
         break;
-    }
     case CTRLBUS_REQ_HEALTH_CLR_ERROR:
         if (ctrlbus_base_health_clear(base, request->as.health_clr_error.error_code) <= 0) {
             return CTRLBUS_WIRE_ERR_OPERATION; /* not registered (or no registry) */
         }
         result = CTRLBUS_OK;
-        written = ctrlbus_ok_answer_write(sink, type);
         break;
     case CTRLBUS_REQ_BASE_CMD: {
         /* Its hook runs once the answer is out. */
@@ -668,7 +690,7 @@ static uint16_t answer_request(ctrlbus_base_t *base, const ctrlbus_request_t *re
         if (hook == NULL) {
             break;
         }
-        (void)ctrlbus_ok_answer_write(sink, type);
+        (void)ctrlbus_codec_write_ok(sink, 0, NULL, NULL, answer_type(base));
         if (reboot) {
             restart(base, now_ms); /* what a handler that returns (a host base) finds */
         }
@@ -680,10 +702,14 @@ static uint16_t answer_request(ctrlbus_base_t *base, const ctrlbus_request_t *re
     if (result < 0) {
         return handler_error(result);
     }
-    /* A struct the encoder refuses (text that is not ASCII, a count over 8, ...) is a handler
-     * failure; it is found before any byte goes out. Other errors are the write callback's: the
-     * answer is cut short, nothing more to say. */
-    return written == CTRLBUS_ERR_ARGUMENT ? CTRLBUS_WIRE_ERR_OPERATION : 0u;
+    /* A struct the check refuses (text that is not ASCII, a count over 8, ...) is a handler
+     * failure; it is found before any byte goes out. */
+    if (size < 0) {
+        return CTRLBUS_WIRE_ERR_OPERATION;
+    }
+    /* A write callback's failure cuts this answer short; there is nothing more to say. */
+    (void)ctrlbus_codec_write_ok(sink, size, put, &out, answer_type(base));
+    return 0;
 }
 
 static void handle_frame(ctrlbus_base_t *base, const ctrlbus_frame_t *frame, uint32_t now_ms,

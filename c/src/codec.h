@@ -1,7 +1,8 @@
 /* SPDX-License-Identifier: MIT */
 /* Private to the library: the field readers and protocol facts that both halves of the message
  * codecs use (messages.c, what a base sends and reads; messages_master.c, what a master sends
- * and reads). Not installed, not part of the API. */
+ * and reads), and the answer writers the base stack shares with messages.c. Not installed, not
+ * part of the API. */
 #ifndef CTRLBUS_SRC_CODEC_H
 #define CTRLBUS_SRC_CODEC_H
 
@@ -70,5 +71,30 @@ static inline bool codec_has_empty_ok(ctrlbus_req_kind_t kind)
            kind == CTRLBUS_REQ_SEND_EVENT || kind == CTRLBUS_REQ_HEALTH_CLR_ERROR ||
            kind == CTRLBUS_REQ_BASE_CMD;
 }
+
+/* ---- writing answers: what messages.c shares with the base stack --------------------------- */
+
+/* Writes the fields of one answer layout; the struct has been checked (its _size). */
+typedef void (*ctrlbus_codec_put_fn)(ctrlbus_sink_t *sink, const void *answer);
+
+/* An OK answer frame of `size` payload bytes (a negative size is a check's error, returned
+ * before anything is written), its fields through put (NULL: an empty payload), its checksum.
+ * Returns the frame's size or a negative error. */
+int32_t ctrlbus_codec_write_ok(ctrlbus_sink_t *sink, int32_t size, ctrlbus_codec_put_fn put,
+                               const void *answer, ctrlbus_frame_type_t type);
+
+/* Each layout's fields, in wire order (answer points at that layout's struct). */
+void ctrlbus_codec_connect_base_fields(ctrlbus_sink_t *sink, const void *answer);
+void ctrlbus_codec_get_base_conf_fields(ctrlbus_sink_t *sink, const void *answer);
+void ctrlbus_codec_get_base_conf_adv_fields(ctrlbus_sink_t *sink, const void *answer);
+void ctrlbus_codec_get_base_status_fields(ctrlbus_sink_t *sink, const void *answer);
+void ctrlbus_codec_get_base_motor_data_fields(ctrlbus_sink_t *sink, const void *answer);
+void ctrlbus_codec_get_base_sensor_data_fields(ctrlbus_sink_t *sink, const void *answer);
+void ctrlbus_codec_get_base_bumper_data_fields(ctrlbus_sink_t *sink, const void *answer);
+void ctrlbus_codec_get_charger_data_fields(ctrlbus_sink_t *sink, const void *answer);
+void ctrlbus_codec_set_v_and_get_deadreckon_fields(ctrlbus_sink_t *sink, const void *answer);
+void ctrlbus_codec_poll_base_cmd_fields(ctrlbus_sink_t *sink, const void *answer);
+void ctrlbus_codec_health_get_health_fields(ctrlbus_sink_t *sink, const void *answer);
+void ctrlbus_codec_health_get_error_fields(ctrlbus_sink_t *sink, const void *answer);
 
 #endif

@@ -209,13 +209,8 @@ int32_t ctrlbus_request_decode(ctrlbus_request_t *out, uint8_t cmd, const uint8_
 
 /* ---- answers: one encoder per layout -------------------------------------------------------- */
 
-/* Writes the fields of one answer layout (the struct is already checked). */
-typedef void (*put_fields_fn)(ctrlbus_sink_t *sink, const void *answer);
-
-/* The per-layout _write: an OK frame of `size` (a negative size is the check's error, returned
- * before anything is written), its fields, its checksum. */
-static int32_t write_ok(ctrlbus_sink_t *sink, int32_t size, put_fields_fn put, const void *answer,
-                        ctrlbus_frame_type_t type)
+int32_t ctrlbus_codec_write_ok(ctrlbus_sink_t *sink, int32_t size, ctrlbus_codec_put_fn put,
+                               const void *answer, ctrlbus_frame_type_t type)
 {
     if (size < 0) {
         return size;
@@ -224,12 +219,14 @@ static int32_t write_ok(ctrlbus_sink_t *sink, int32_t size, put_fields_fn put, c
     if (result < 0) {
         return result;
     }
-    put(sink, answer);
+    if (put != NULL) {
+        put(sink, answer);
+    }
     return ctrlbus_sink_end(sink);
 }
 
 /* The per-layout _put: the check, then the fields (a bad struct fails the sink's frame). */
-static void put_checked(ctrlbus_sink_t *sink, int32_t size, put_fields_fn put, const void *answer)
+static void put_checked(ctrlbus_sink_t *sink, int32_t size, ctrlbus_codec_put_fn put, const void *answer)
 {
     if (size < 0) {
         ctrlbus_sink_fail(sink, size);
@@ -266,7 +263,7 @@ int32_t ctrlbus_connect_base_answer_size(const ctrlbus_connect_base_answer_t *a)
                                           : CTRLBUS_CONNECT_BASE_ANSWER_SIZE;
 }
 
-static void connect_base_fields(ctrlbus_sink_t *sink, const void *answer)
+void ctrlbus_codec_connect_base_fields(ctrlbus_sink_t *sink, const void *answer)
 {
     const ctrlbus_connect_base_answer_t *a = answer;
     ctrlbus_sink_put_text(sink, a->model, CTRLBUS_MODEL_LEN);
@@ -283,14 +280,14 @@ static void connect_base_fields(ctrlbus_sink_t *sink, const void *answer)
 
 void ctrlbus_connect_base_answer_put(ctrlbus_sink_t *sink, const ctrlbus_connect_base_answer_t *a)
 {
-    put_checked(sink, ctrlbus_connect_base_answer_size(a), connect_base_fields, a);
+    put_checked(sink, ctrlbus_connect_base_answer_size(a), ctrlbus_codec_connect_base_fields, a);
 }
 
 int32_t ctrlbus_connect_base_answer_write(ctrlbus_sink_t *sink,
                                           const ctrlbus_connect_base_answer_t *a,
                                           ctrlbus_frame_type_t type)
 {
-    return write_ok(sink, ctrlbus_connect_base_answer_size(a), connect_base_fields, a, type);
+    return ctrlbus_codec_write_ok(sink, ctrlbus_connect_base_answer_size(a), ctrlbus_codec_connect_base_fields, a, type);
 }
 
 /* GET_BASE_CONF */
@@ -310,7 +307,7 @@ static void put_positions(ctrlbus_sink_t *sink, const ctrlbus_position_t *positi
     }
 }
 
-static void get_base_conf_fields(ctrlbus_sink_t *sink, const void *answer)
+void ctrlbus_codec_get_base_conf_fields(ctrlbus_sink_t *sink, const void *answer)
 {
     const ctrlbus_get_base_conf_answer_t *a = answer;
     ctrlbus_sink_put_u8(sink, a->base_type);
@@ -324,14 +321,14 @@ static void get_base_conf_fields(ctrlbus_sink_t *sink, const void *answer)
 
 void ctrlbus_get_base_conf_answer_put(ctrlbus_sink_t *sink, const ctrlbus_get_base_conf_answer_t *a)
 {
-    put_checked(sink, ctrlbus_get_base_conf_answer_size(a), get_base_conf_fields, a);
+    put_checked(sink, ctrlbus_get_base_conf_answer_size(a), ctrlbus_codec_get_base_conf_fields, a);
 }
 
 int32_t ctrlbus_get_base_conf_answer_write(ctrlbus_sink_t *sink,
                                            const ctrlbus_get_base_conf_answer_t *a,
                                            ctrlbus_frame_type_t type)
 {
-    return write_ok(sink, ctrlbus_get_base_conf_answer_size(a), get_base_conf_fields, a, type);
+    return ctrlbus_codec_write_ok(sink, ctrlbus_get_base_conf_answer_size(a), ctrlbus_codec_get_base_conf_fields, a, type);
 }
 
 /* GET_BASE_CONF_ADV */
@@ -341,7 +338,7 @@ static int32_t get_base_conf_adv_size(const ctrlbus_get_base_conf_adv_answer_t *
     return a != NULL ? bytes_size(a->blob, a->blob_len) : CTRLBUS_ERR_ARGUMENT;
 }
 
-static void get_base_conf_adv_fields(ctrlbus_sink_t *sink, const void *answer)
+void ctrlbus_codec_get_base_conf_adv_fields(ctrlbus_sink_t *sink, const void *answer)
 {
     const ctrlbus_get_base_conf_adv_answer_t *a = answer;
     ctrlbus_sink_put(sink, a->blob, a->blob_len);
@@ -350,19 +347,19 @@ static void get_base_conf_adv_fields(ctrlbus_sink_t *sink, const void *answer)
 void ctrlbus_get_base_conf_adv_answer_put(ctrlbus_sink_t *sink,
                                           const ctrlbus_get_base_conf_adv_answer_t *a)
 {
-    put_checked(sink, get_base_conf_adv_size(a), get_base_conf_adv_fields, a);
+    put_checked(sink, get_base_conf_adv_size(a), ctrlbus_codec_get_base_conf_adv_fields, a);
 }
 
 int32_t ctrlbus_get_base_conf_adv_answer_write(ctrlbus_sink_t *sink,
                                                const ctrlbus_get_base_conf_adv_answer_t *a,
                                                ctrlbus_frame_type_t type)
 {
-    return write_ok(sink, get_base_conf_adv_size(a), get_base_conf_adv_fields, a, type);
+    return ctrlbus_codec_write_ok(sink, get_base_conf_adv_size(a), ctrlbus_codec_get_base_conf_adv_fields, a, type);
 }
 
 /* GET_BASE_STATUS */
 
-static void get_base_status_fields(ctrlbus_sink_t *sink, const void *answer)
+void ctrlbus_codec_get_base_status_fields(ctrlbus_sink_t *sink, const void *answer)
 {
     const ctrlbus_get_base_status_answer_t *a = answer;
     ctrlbus_sink_put_u8(sink, a->battery_percent);
@@ -372,7 +369,7 @@ static void get_base_status_fields(ctrlbus_sink_t *sink, const void *answer)
 void ctrlbus_get_base_status_answer_put(ctrlbus_sink_t *sink,
                                         const ctrlbus_get_base_status_answer_t *a)
 {
-    put_checked(sink, fixed_size(a, CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE), get_base_status_fields,
+    put_checked(sink, fixed_size(a, CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE), ctrlbus_codec_get_base_status_fields,
                 a);
 }
 
@@ -380,13 +377,13 @@ int32_t ctrlbus_get_base_status_answer_write(ctrlbus_sink_t *sink,
                                              const ctrlbus_get_base_status_answer_t *a,
                                              ctrlbus_frame_type_t type)
 {
-    return write_ok(sink, fixed_size(a, CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE),
-                    get_base_status_fields, a, type);
+    return ctrlbus_codec_write_ok(sink, fixed_size(a, CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE),
+                    ctrlbus_codec_get_base_status_fields, a, type);
 }
 
 /* GET_BASE_MOTOR_DATA */
 
-static void get_base_motor_data_fields(ctrlbus_sink_t *sink, const void *answer)
+void ctrlbus_codec_get_base_motor_data_fields(ctrlbus_sink_t *sink, const void *answer)
 {
     const ctrlbus_get_base_motor_data_answer_t *a = answer;
     ctrlbus_sink_put_s32(sink, a->left_distance_mm);
@@ -398,20 +395,20 @@ void ctrlbus_get_base_motor_data_answer_put(ctrlbus_sink_t *sink,
                                             const ctrlbus_get_base_motor_data_answer_t *a)
 {
     put_checked(sink, fixed_size(a, CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE),
-                get_base_motor_data_fields, a);
+                ctrlbus_codec_get_base_motor_data_fields, a);
 }
 
 int32_t ctrlbus_get_base_motor_data_answer_write(ctrlbus_sink_t *sink,
                                                  const ctrlbus_get_base_motor_data_answer_t *a,
                                                  ctrlbus_frame_type_t type)
 {
-    return write_ok(sink, fixed_size(a, CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE),
-                    get_base_motor_data_fields, a, type);
+    return ctrlbus_codec_write_ok(sink, fixed_size(a, CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE),
+                    ctrlbus_codec_get_base_motor_data_fields, a, type);
 }
 
 /* GET_BASE_SENSOR_DATA */
 
-static void get_base_sensor_data_fields(ctrlbus_sink_t *sink, const void *answer)
+void ctrlbus_codec_get_base_sensor_data_fields(ctrlbus_sink_t *sink, const void *answer)
 {
     const ctrlbus_get_base_sensor_data_answer_t *a = answer;
     for (size_t i = 0; i < CTRLBUS_SENSOR_CHANNELS; i++) {
@@ -423,15 +420,15 @@ void ctrlbus_get_base_sensor_data_answer_put(ctrlbus_sink_t *sink,
                                              const ctrlbus_get_base_sensor_data_answer_t *a)
 {
     put_checked(sink, fixed_size(a, CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE),
-                get_base_sensor_data_fields, a);
+                ctrlbus_codec_get_base_sensor_data_fields, a);
 }
 
 int32_t ctrlbus_get_base_sensor_data_answer_write(ctrlbus_sink_t *sink,
                                                   const ctrlbus_get_base_sensor_data_answer_t *a,
                                                   ctrlbus_frame_type_t type)
 {
-    return write_ok(sink, fixed_size(a, CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE),
-                    get_base_sensor_data_fields, a, type);
+    return ctrlbus_codec_write_ok(sink, fixed_size(a, CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE),
+                    ctrlbus_codec_get_base_sensor_data_fields, a, type);
 }
 
 /* GET_BASE_BUMPER_DATA */
@@ -448,7 +445,7 @@ int32_t ctrlbus_get_base_bumper_data_answer_size(const ctrlbus_get_base_bumper_d
     return a->payload_size;
 }
 
-static void get_base_bumper_data_fields(ctrlbus_sink_t *sink, const void *answer)
+void ctrlbus_codec_get_base_bumper_data_fields(ctrlbus_sink_t *sink, const void *answer)
 {
     const ctrlbus_get_base_bumper_data_answer_t *a = answer;
     for (uint8_t i = 0; i < a->payload_size; i++) {
@@ -459,7 +456,7 @@ static void get_base_bumper_data_fields(ctrlbus_sink_t *sink, const void *answer
 void ctrlbus_get_base_bumper_data_answer_put(ctrlbus_sink_t *sink,
                                              const ctrlbus_get_base_bumper_data_answer_t *a)
 {
-    put_checked(sink, ctrlbus_get_base_bumper_data_answer_size(a), get_base_bumper_data_fields,
+    put_checked(sink, ctrlbus_get_base_bumper_data_answer_size(a), ctrlbus_codec_get_base_bumper_data_fields,
                 a);
 }
 
@@ -467,8 +464,8 @@ int32_t ctrlbus_get_base_bumper_data_answer_write(ctrlbus_sink_t *sink,
                                                   const ctrlbus_get_base_bumper_data_answer_t *a,
                                                   ctrlbus_frame_type_t type)
 {
-    return write_ok(sink, ctrlbus_get_base_bumper_data_answer_size(a),
-                    get_base_bumper_data_fields, a, type);
+    return ctrlbus_codec_write_ok(sink, ctrlbus_get_base_bumper_data_answer_size(a),
+                    ctrlbus_codec_get_base_bumper_data_fields, a, type);
 }
 
 /* GET_CHARGER_DATA */
@@ -481,7 +478,7 @@ int32_t ctrlbus_get_charger_data_answer_size(const ctrlbus_get_charger_data_answ
     return (int32_t)CTRLBUS_GET_CHARGER_DATA_ANSWER_MIN + a->probe_count;
 }
 
-static void get_charger_data_fields(ctrlbus_sink_t *sink, const void *answer)
+void ctrlbus_codec_get_charger_data_fields(ctrlbus_sink_t *sink, const void *answer)
 {
     const ctrlbus_get_charger_data_answer_t *a = answer;
     ctrlbus_sink_put_u8(sink, a->beacon_count);
@@ -492,14 +489,14 @@ static void get_charger_data_fields(ctrlbus_sink_t *sink, const void *answer)
 void ctrlbus_get_charger_data_answer_put(ctrlbus_sink_t *sink,
                                          const ctrlbus_get_charger_data_answer_t *a)
 {
-    put_checked(sink, ctrlbus_get_charger_data_answer_size(a), get_charger_data_fields, a);
+    put_checked(sink, ctrlbus_get_charger_data_answer_size(a), ctrlbus_codec_get_charger_data_fields, a);
 }
 
 int32_t ctrlbus_get_charger_data_answer_write(ctrlbus_sink_t *sink,
                                               const ctrlbus_get_charger_data_answer_t *a,
                                               ctrlbus_frame_type_t type)
 {
-    return write_ok(sink, ctrlbus_get_charger_data_answer_size(a), get_charger_data_fields, a,
+    return ctrlbus_codec_write_ok(sink, ctrlbus_get_charger_data_answer_size(a), ctrlbus_codec_get_charger_data_fields, a,
                     type);
 }
 
@@ -515,7 +512,7 @@ int32_t ctrlbus_set_v_and_get_deadreckon_answer_size(
                                : CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE;
 }
 
-static void set_v_and_get_deadreckon_fields(ctrlbus_sink_t *sink, const void *answer)
+void ctrlbus_codec_set_v_and_get_deadreckon_fields(ctrlbus_sink_t *sink, const void *answer)
 {
     const ctrlbus_set_v_and_get_deadreckon_answer_t *a = answer;
     ctrlbus_sink_put_s32(sink, a->dx_mm_q16);
@@ -531,15 +528,15 @@ void ctrlbus_set_v_and_get_deadreckon_answer_put(
     ctrlbus_sink_t *sink, const ctrlbus_set_v_and_get_deadreckon_answer_t *a)
 {
     put_checked(sink, ctrlbus_set_v_and_get_deadreckon_answer_size(a),
-                set_v_and_get_deadreckon_fields, a);
+                ctrlbus_codec_set_v_and_get_deadreckon_fields, a);
 }
 
 int32_t ctrlbus_set_v_and_get_deadreckon_answer_write(
     ctrlbus_sink_t *sink, const ctrlbus_set_v_and_get_deadreckon_answer_t *a,
     ctrlbus_frame_type_t type)
 {
-    return write_ok(sink, ctrlbus_set_v_and_get_deadreckon_answer_size(a),
-                    set_v_and_get_deadreckon_fields, a, type);
+    return ctrlbus_codec_write_ok(sink, ctrlbus_set_v_and_get_deadreckon_answer_size(a),
+                    ctrlbus_codec_set_v_and_get_deadreckon_fields, a, type);
 }
 
 /* POLL_BASE_CMD */
@@ -559,7 +556,7 @@ int32_t ctrlbus_poll_base_cmd_answer_size(const ctrlbus_poll_base_cmd_answer_t *
     return CTRLBUS_POLL_BASE_CMD_ANSWER_SIZE;
 }
 
-static void poll_base_cmd_fields(ctrlbus_sink_t *sink, const void *answer)
+void ctrlbus_codec_poll_base_cmd_fields(ctrlbus_sink_t *sink, const void *answer)
 {
     const ctrlbus_poll_base_cmd_answer_t *a = answer;
     if (a->payload_size > 0) {
@@ -570,19 +567,19 @@ static void poll_base_cmd_fields(ctrlbus_sink_t *sink, const void *answer)
 
 void ctrlbus_poll_base_cmd_answer_put(ctrlbus_sink_t *sink, const ctrlbus_poll_base_cmd_answer_t *a)
 {
-    put_checked(sink, ctrlbus_poll_base_cmd_answer_size(a), poll_base_cmd_fields, a);
+    put_checked(sink, ctrlbus_poll_base_cmd_answer_size(a), ctrlbus_codec_poll_base_cmd_fields, a);
 }
 
 int32_t ctrlbus_poll_base_cmd_answer_write(ctrlbus_sink_t *sink,
                                            const ctrlbus_poll_base_cmd_answer_t *a,
                                            ctrlbus_frame_type_t type)
 {
-    return write_ok(sink, ctrlbus_poll_base_cmd_answer_size(a), poll_base_cmd_fields, a, type);
+    return ctrlbus_codec_write_ok(sink, ctrlbus_poll_base_cmd_answer_size(a), ctrlbus_codec_poll_base_cmd_fields, a, type);
 }
 
 /* HEALTH_GET_HEALTH */
 
-static void health_get_health_fields(ctrlbus_sink_t *sink, const void *answer)
+void ctrlbus_codec_health_get_health_fields(ctrlbus_sink_t *sink, const void *answer)
 {
     const ctrlbus_health_get_health_answer_t *a = answer;
     ctrlbus_sink_put_u8(sink, a->flags);
@@ -593,15 +590,15 @@ void ctrlbus_health_get_health_answer_put(ctrlbus_sink_t *sink,
                                           const ctrlbus_health_get_health_answer_t *a)
 {
     put_checked(sink, fixed_size(a, CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE),
-                health_get_health_fields, a);
+                ctrlbus_codec_health_get_health_fields, a);
 }
 
 int32_t ctrlbus_health_get_health_answer_write(ctrlbus_sink_t *sink,
                                                const ctrlbus_health_get_health_answer_t *a,
                                                ctrlbus_frame_type_t type)
 {
-    return write_ok(sink, fixed_size(a, CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE),
-                    health_get_health_fields, a, type);
+    return ctrlbus_codec_write_ok(sink, fixed_size(a, CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE),
+                    ctrlbus_codec_health_get_health_fields, a, type);
 }
 
 /* HEALTH_GET_ERROR */
@@ -616,7 +613,7 @@ int32_t ctrlbus_health_get_error_answer_size(const ctrlbus_health_get_error_answ
     return CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE;
 }
 
-static void health_get_error_fields(ctrlbus_sink_t *sink, const void *answer)
+void ctrlbus_codec_health_get_error_fields(ctrlbus_sink_t *sink, const void *answer)
 {
     const ctrlbus_health_get_error_answer_t *a = answer;
     ctrlbus_sink_put_u32(sink, a->error_code);
@@ -626,14 +623,14 @@ static void health_get_error_fields(ctrlbus_sink_t *sink, const void *answer)
 void ctrlbus_health_get_error_answer_put(ctrlbus_sink_t *sink,
                                          const ctrlbus_health_get_error_answer_t *a)
 {
-    put_checked(sink, ctrlbus_health_get_error_answer_size(a), health_get_error_fields, a);
+    put_checked(sink, ctrlbus_health_get_error_answer_size(a), ctrlbus_codec_health_get_error_fields, a);
 }
 
 int32_t ctrlbus_health_get_error_answer_write(ctrlbus_sink_t *sink,
                                               const ctrlbus_health_get_error_answer_t *a,
                                               ctrlbus_frame_type_t type)
 {
-    return write_ok(sink, ctrlbus_health_get_error_answer_size(a), health_get_error_fields, a,
+    return ctrlbus_codec_write_ok(sink, ctrlbus_health_get_error_answer_size(a), ctrlbus_codec_health_get_error_fields, a,
                     type);
 }
 
@@ -641,7 +638,7 @@ int32_t ctrlbus_health_get_error_answer_write(ctrlbus_sink_t *sink,
 
 int32_t ctrlbus_ok_answer_write(ctrlbus_sink_t *sink, ctrlbus_frame_type_t type)
 {
-    return ctrlbus_frame_write(sink, CTRLBUS_CMD_OK, NULL, 0, type);
+    return ctrlbus_codec_write_ok(sink, 0, NULL, NULL, type);
 }
 
 int32_t ctrlbus_error_answer_write(ctrlbus_sink_t *sink, uint16_t error_code,
@@ -670,7 +667,7 @@ const char *ctrlbus_answer_name(ctrlbus_answer_kind_t kind)
 }
 
 /* The OK answer's layout: its size (negative: the struct cannot be encoded) and fields writer. */
-static int32_t ok_layout(const ctrlbus_answer_t *a, put_fields_fn *put)
+static int32_t ok_layout(const ctrlbus_answer_t *a, ctrlbus_codec_put_fn *put)
 {
     *put = NULL;
     if (codec_has_empty_ok(a->to)) {
@@ -678,47 +675,47 @@ static int32_t ok_layout(const ctrlbus_answer_t *a, put_fields_fn *put)
     }
     switch (a->to) {
     case CTRLBUS_REQ_CONNECT_BASE:
-        *put = connect_base_fields;
+        *put = ctrlbus_codec_connect_base_fields;
         return ctrlbus_connect_base_answer_size(&a->as.connect_base);
     case CTRLBUS_REQ_GET_BASE_CONF:
-        *put = get_base_conf_fields;
+        *put = ctrlbus_codec_get_base_conf_fields;
         return ctrlbus_get_base_conf_answer_size(&a->as.get_base_conf);
     case CTRLBUS_REQ_GET_BASE_CONF_ADV:
-        *put = get_base_conf_adv_fields;
+        *put = ctrlbus_codec_get_base_conf_adv_fields;
         return get_base_conf_adv_size(&a->as.get_base_conf_adv);
     case CTRLBUS_REQ_GET_BASE_STATUS:
-        *put = get_base_status_fields;
+        *put = ctrlbus_codec_get_base_status_fields;
         return CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE;
     case CTRLBUS_REQ_GET_BASE_MOTOR_DATA:
-        *put = get_base_motor_data_fields;
+        *put = ctrlbus_codec_get_base_motor_data_fields;
         return CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE;
     case CTRLBUS_REQ_GET_BASE_SENSOR_DATA:
-        *put = get_base_sensor_data_fields;
+        *put = ctrlbus_codec_get_base_sensor_data_fields;
         return CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE;
     case CTRLBUS_REQ_GET_BASE_BUMPER_DATA:
-        *put = get_base_bumper_data_fields;
+        *put = ctrlbus_codec_get_base_bumper_data_fields;
         return ctrlbus_get_base_bumper_data_answer_size(&a->as.get_base_bumper_data);
     case CTRLBUS_REQ_GET_CHARGER_DATA:
-        *put = get_charger_data_fields;
+        *put = ctrlbus_codec_get_charger_data_fields;
         return ctrlbus_get_charger_data_answer_size(&a->as.get_charger_data);
     case CTRLBUS_REQ_SET_V_AND_GET_DEADRECKON:
-        *put = set_v_and_get_deadreckon_fields;
+        *put = ctrlbus_codec_set_v_and_get_deadreckon_fields;
         return ctrlbus_set_v_and_get_deadreckon_answer_size(&a->as.set_v_and_get_deadreckon);
     case CTRLBUS_REQ_POLL_BASE_CMD:
-        *put = poll_base_cmd_fields;
+        *put = ctrlbus_codec_poll_base_cmd_fields;
         return ctrlbus_poll_base_cmd_answer_size(&a->as.poll_base_cmd);
     case CTRLBUS_REQ_HEALTH_GET_HEALTH:
-        *put = health_get_health_fields;
+        *put = ctrlbus_codec_health_get_health_fields;
         return CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE;
     case CTRLBUS_REQ_HEALTH_GET_ERROR:
-        *put = health_get_error_fields;
+        *put = ctrlbus_codec_health_get_error_fields;
         return ctrlbus_health_get_error_answer_size(&a->as.health_get_error);
     default: return CTRLBUS_ERR_ARGUMENT; /* SYNC, ECHO, GET_AUXILIARY_ANCHOR: no OK layout */
     }
 }
 
 /* Size of an answer of any kind, and (for a non-empty OK payload) its fields writer. */
-static int32_t answer_layout(const ctrlbus_answer_t *answer, put_fields_fn *put)
+static int32_t answer_layout(const ctrlbus_answer_t *answer, ctrlbus_codec_put_fn *put)
 {
     *put = NULL;
     if (answer == NULL) {
@@ -737,7 +734,7 @@ static int32_t answer_layout(const ctrlbus_answer_t *answer, put_fields_fn *put)
 
 int32_t ctrlbus_answer_payload_size(const ctrlbus_answer_t *answer)
 {
-    put_fields_fn put;
+    ctrlbus_codec_put_fn put;
     return answer_layout(answer, &put);
 }
 
@@ -749,7 +746,7 @@ int32_t ctrlbus_answer_write(ctrlbus_sink_t *sink, const ctrlbus_answer_t *answe
         [CTRLBUS_ANSWER_INVALID] = CTRLBUS_CMD_INVALID, [CTRLBUS_ANSWER_SYNC] = CTRLBUS_CMD_SYNC,
         [CTRLBUS_ANSWER_ECHO] = CTRLBUS_CMD_ECHO,
     };
-    put_fields_fn put;
+    ctrlbus_codec_put_fn put;
     int32_t size = answer_layout(answer, &put);
     if (size < 0) {
         return size;
