@@ -47,7 +47,7 @@ static inline int32_t codec_take_s32(const uint8_t **p)
     return (int32_t)(value - 0x80000000u) - INT32_MAX - 1;
 }
 
-/* ---- argument values the protocol defines (others: well-formed but unsupported, 0x8000) ------- */
+/* ---- argument values the protocol defines (others: well-formed but unsupported, 0x8000) ---- */
 
 static inline bool codec_base_cmd_known(uint8_t subcommand)
 {

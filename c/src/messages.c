@@ -89,15 +89,18 @@ static int32_t decode_health(ctrlbus_request_t *out, const uint8_t *payload, siz
     int32_t result;
     switch (payload[1]) {
     case CTRLBUS_HEALTH_SUB_GET_HEALTH:
-        return expect(out, CTRLBUS_REQ_HEALTH_GET_HEALTH, len, CTRLBUS_HEALTH_GET_HEALTH_REQUEST_SIZE);
+        return expect(out, CTRLBUS_REQ_HEALTH_GET_HEALTH, len,
+                      CTRLBUS_HEALTH_GET_HEALTH_REQUEST_SIZE);
     case CTRLBUS_HEALTH_SUB_GET_ERROR:
-        result = expect(out, CTRLBUS_REQ_HEALTH_GET_ERROR, len, CTRLBUS_HEALTH_GET_ERROR_REQUEST_SIZE);
+        result = expect(out, CTRLBUS_REQ_HEALTH_GET_ERROR, len,
+                        CTRLBUS_HEALTH_GET_ERROR_REQUEST_SIZE);
         if (result == CTRLBUS_OK) {
             out->as.health_get_error.index = codec_take_u8(&args);
         }
         return result;
     case CTRLBUS_HEALTH_SUB_CLR_ERROR:
-        result = expect(out, CTRLBUS_REQ_HEALTH_CLR_ERROR, len, CTRLBUS_HEALTH_CLR_ERROR_REQUEST_SIZE);
+        result = expect(out, CTRLBUS_REQ_HEALTH_CLR_ERROR, len,
+                        CTRLBUS_HEALTH_CLR_ERROR_REQUEST_SIZE);
         if (result == CTRLBUS_OK) {
             out->as.health_clr_error.error_code = codec_take_u32(&args);
         }
@@ -137,7 +140,8 @@ static int32_t decode_ctrl_bus(ctrlbus_request_t *out, const uint8_t *payload, s
     case CTRLBUS_CODE_GET_BASE_BUMPER_DATA:
         return expect(out, CTRLBUS_REQ_GET_BASE_BUMPER_DATA, len, CTRLBUS_PLAIN_REQUEST_SIZE);
     case CTRLBUS_CODE_GET_CHARGER_DATA:
-        result = expect(out, CTRLBUS_REQ_GET_CHARGER_DATA, len, CTRLBUS_GET_CHARGER_DATA_REQUEST_SIZE);
+        result = expect(out, CTRLBUS_REQ_GET_CHARGER_DATA, len,
+                        CTRLBUS_GET_CHARGER_DATA_REQUEST_SIZE);
         if (result == CTRLBUS_OK) {
             out->as.get_charger_data.data_type = args[0];
             result = supported_if(codec_charger_type_known(args[0]));
@@ -226,7 +230,8 @@ int32_t ctrlbus_codec_write_ok(ctrlbus_sink_t *sink, int32_t size, ctrlbus_codec
 }
 
 /* The per-layout _put: the check, then the fields (a bad struct fails the sink's frame). */
-static void put_checked(ctrlbus_sink_t *sink, int32_t size, ctrlbus_codec_put_fn put, const void *answer)
+static void put_checked(ctrlbus_sink_t *sink, int32_t size, ctrlbus_codec_put_fn put,
+                        const void *answer)
 {
     if (size < 0) {
         ctrlbus_sink_fail(sink, size);
@@ -287,7 +292,8 @@ int32_t ctrlbus_connect_base_answer_write(ctrlbus_sink_t *sink,
                                           const ctrlbus_connect_base_answer_t *a,
                                           ctrlbus_frame_type_t type)
 {
-    return ctrlbus_codec_write_ok(sink, ctrlbus_connect_base_answer_size(a), ctrlbus_codec_connect_base_fields, a, type);
+    return ctrlbus_codec_write_ok(sink, ctrlbus_connect_base_answer_size(a),
+                                  ctrlbus_codec_connect_base_fields, a, type);
 }
 
 /* GET_BASE_CONF */
@@ -328,7 +334,8 @@ int32_t ctrlbus_get_base_conf_answer_write(ctrlbus_sink_t *sink,
                                            const ctrlbus_get_base_conf_answer_t *a,
                                            ctrlbus_frame_type_t type)
 {
-    return ctrlbus_codec_write_ok(sink, ctrlbus_get_base_conf_answer_size(a), ctrlbus_codec_get_base_conf_fields, a, type);
+    return ctrlbus_codec_write_ok(sink, ctrlbus_get_base_conf_answer_size(a),
+                                  ctrlbus_codec_get_base_conf_fields, a, type);
 }
 
 /* GET_BASE_CONF_ADV */
@@ -354,7 +361,8 @@ int32_t ctrlbus_get_base_conf_adv_answer_write(ctrlbus_sink_t *sink,
                                                const ctrlbus_get_base_conf_adv_answer_t *a,
                                                ctrlbus_frame_type_t type)
 {
-    return ctrlbus_codec_write_ok(sink, get_base_conf_adv_size(a), ctrlbus_codec_get_base_conf_adv_fields, a, type);
+    return ctrlbus_codec_write_ok(sink, get_base_conf_adv_size(a),
+                                  ctrlbus_codec_get_base_conf_adv_fields, a, type);
 }
 
 /* GET_BASE_STATUS */
@@ -369,8 +377,8 @@ void ctrlbus_codec_get_base_status_fields(ctrlbus_sink_t *sink, const void *answ
 void ctrlbus_get_base_status_answer_put(ctrlbus_sink_t *sink,
                                         const ctrlbus_get_base_status_answer_t *a)
 {
-    put_checked(sink, fixed_size(a, CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE), ctrlbus_codec_get_base_status_fields,
-                a);
+    put_checked(sink, fixed_size(a, CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE),
+                ctrlbus_codec_get_base_status_fields, a);
 }
 
 int32_t ctrlbus_get_base_status_answer_write(ctrlbus_sink_t *sink,
@@ -378,7 +386,7 @@ int32_t ctrlbus_get_base_status_answer_write(ctrlbus_sink_t *sink,
                                              ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, fixed_size(a, CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE),
-                    ctrlbus_codec_get_base_status_fields, a, type);
+                                  ctrlbus_codec_get_base_status_fields, a, type);
 }
 
 /* GET_BASE_MOTOR_DATA */
@@ -403,7 +411,7 @@ int32_t ctrlbus_get_base_motor_data_answer_write(ctrlbus_sink_t *sink,
                                                  ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, fixed_size(a, CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE),
-                    ctrlbus_codec_get_base_motor_data_fields, a, type);
+                                  ctrlbus_codec_get_base_motor_data_fields, a, type);
 }
 
 /* GET_BASE_SENSOR_DATA */
@@ -428,7 +436,7 @@ int32_t ctrlbus_get_base_sensor_data_answer_write(ctrlbus_sink_t *sink,
                                                   ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, fixed_size(a, CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE),
-                    ctrlbus_codec_get_base_sensor_data_fields, a, type);
+                                  ctrlbus_codec_get_base_sensor_data_fields, a, type);
 }
 
 /* GET_BASE_BUMPER_DATA */
@@ -456,8 +464,8 @@ void ctrlbus_codec_get_base_bumper_data_fields(ctrlbus_sink_t *sink, const void 
 void ctrlbus_get_base_bumper_data_answer_put(ctrlbus_sink_t *sink,
                                              const ctrlbus_get_base_bumper_data_answer_t *a)
 {
-    put_checked(sink, ctrlbus_get_base_bumper_data_answer_size(a), ctrlbus_codec_get_base_bumper_data_fields,
-                a);
+    put_checked(sink, ctrlbus_get_base_bumper_data_answer_size(a),
+                ctrlbus_codec_get_base_bumper_data_fields, a);
 }
 
 int32_t ctrlbus_get_base_bumper_data_answer_write(ctrlbus_sink_t *sink,
@@ -465,7 +473,7 @@ int32_t ctrlbus_get_base_bumper_data_answer_write(ctrlbus_sink_t *sink,
                                                   ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, ctrlbus_get_base_bumper_data_answer_size(a),
-                    ctrlbus_codec_get_base_bumper_data_fields, a, type);
+                                  ctrlbus_codec_get_base_bumper_data_fields, a, type);
 }
 
 /* GET_CHARGER_DATA */
@@ -489,15 +497,16 @@ void ctrlbus_codec_get_charger_data_fields(ctrlbus_sink_t *sink, const void *ans
 void ctrlbus_get_charger_data_answer_put(ctrlbus_sink_t *sink,
                                          const ctrlbus_get_charger_data_answer_t *a)
 {
-    put_checked(sink, ctrlbus_get_charger_data_answer_size(a), ctrlbus_codec_get_charger_data_fields, a);
+    put_checked(sink, ctrlbus_get_charger_data_answer_size(a),
+                ctrlbus_codec_get_charger_data_fields, a);
 }
 
 int32_t ctrlbus_get_charger_data_answer_write(ctrlbus_sink_t *sink,
                                               const ctrlbus_get_charger_data_answer_t *a,
                                               ctrlbus_frame_type_t type)
 {
-    return ctrlbus_codec_write_ok(sink, ctrlbus_get_charger_data_answer_size(a), ctrlbus_codec_get_charger_data_fields, a,
-                    type);
+    return ctrlbus_codec_write_ok(sink, ctrlbus_get_charger_data_answer_size(a),
+                                  ctrlbus_codec_get_charger_data_fields, a, type);
 }
 
 /* SET_V_AND_GET_DEADRECKON */
@@ -536,7 +545,7 @@ int32_t ctrlbus_set_v_and_get_deadreckon_answer_write(
     ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, ctrlbus_set_v_and_get_deadreckon_answer_size(a),
-                    ctrlbus_codec_set_v_and_get_deadreckon_fields, a, type);
+                                  ctrlbus_codec_set_v_and_get_deadreckon_fields, a, type);
 }
 
 /* POLL_BASE_CMD */
@@ -574,7 +583,8 @@ int32_t ctrlbus_poll_base_cmd_answer_write(ctrlbus_sink_t *sink,
                                            const ctrlbus_poll_base_cmd_answer_t *a,
                                            ctrlbus_frame_type_t type)
 {
-    return ctrlbus_codec_write_ok(sink, ctrlbus_poll_base_cmd_answer_size(a), ctrlbus_codec_poll_base_cmd_fields, a, type);
+    return ctrlbus_codec_write_ok(sink, ctrlbus_poll_base_cmd_answer_size(a),
+                                  ctrlbus_codec_poll_base_cmd_fields, a, type);
 }
 
 /* HEALTH_GET_HEALTH */
@@ -598,7 +608,7 @@ int32_t ctrlbus_health_get_health_answer_write(ctrlbus_sink_t *sink,
                                                ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, fixed_size(a, CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE),
-                    ctrlbus_codec_health_get_health_fields, a, type);
+                                  ctrlbus_codec_health_get_health_fields, a, type);
 }
 
 /* HEALTH_GET_ERROR */
@@ -623,15 +633,16 @@ void ctrlbus_codec_health_get_error_fields(ctrlbus_sink_t *sink, const void *ans
 void ctrlbus_health_get_error_answer_put(ctrlbus_sink_t *sink,
                                          const ctrlbus_health_get_error_answer_t *a)
 {
-    put_checked(sink, ctrlbus_health_get_error_answer_size(a), ctrlbus_codec_health_get_error_fields, a);
+    put_checked(sink, ctrlbus_health_get_error_answer_size(a),
+                ctrlbus_codec_health_get_error_fields, a);
 }
 
 int32_t ctrlbus_health_get_error_answer_write(ctrlbus_sink_t *sink,
                                               const ctrlbus_health_get_error_answer_t *a,
                                               ctrlbus_frame_type_t type)
 {
-    return ctrlbus_codec_write_ok(sink, ctrlbus_health_get_error_answer_size(a), ctrlbus_codec_health_get_error_fields, a,
-                    type);
+    return ctrlbus_codec_write_ok(sink, ctrlbus_health_get_error_answer_size(a),
+                                  ctrlbus_codec_health_get_error_fields, a, type);
 }
 
 /* Empty OK answers and ERROR answers. */
