@@ -17,8 +17,8 @@
  *     ctrlbus_base_init() refuses (CTRLBUS_ERR_UNSUPPORTED) a config that asks for it.
  *
  * The size effects are .text bytes of the base stack on cortex-m0plus, arm-none-eabi-gcc 12 -Os,
- * linked with --gc-sections, each switch turned off alone from the default build (6,416 B). All
- * off together (the minimal configuration) save 1,786 B (4,630 B left). `make size` prints both
+ * linked with --gc-sections, each switch turned off alone from the default build (5,884 B). All
+ * off together (the minimal configuration) save 1,674 B (4,210 B left). `make size` prints both
  * configurations for every target; docs/performance.md tables them.
  */
 #ifndef CTRLBUS_CTRLBUS_CONFIG_H
@@ -32,7 +32,7 @@
  * watchdog's health warning). Off: HEALTH_GET_HEALTH (mandatory) answers no errors,
  * HEALTH_GET_ERROR and HEALTH_CLR_ERROR answer 0x8002 (no such error, as with an empty registry),
  * ctrlbus_base_health_add/_clear return CTRLBUS_ERR_UNSUPPORTED, and a config with
- * health_entries is refused. Size effect: 560 B. */
+ * health_entries is refused. Size effect: 528 B. */
 #ifndef CTRLBUS_CONFIG_HEALTH
 #define CTRLBUS_CONFIG_HEALTH 1
 #endif
@@ -56,14 +56,14 @@
 
 /* The sdk2020 profile (CTRLBUS_PROFILE_SDK2020: CONNECT with its suffix, deadreckon with the
  * timestamp, bumpers padded to 4 bytes, POLL_BASE_CMD's FF 00). Off: only the reference profile;
- * a config asking for sdk2020 is refused. Size effect: 48 B. */
+ * a config asking for sdk2020 is refused. Size effect: 52 B. */
 #ifndef CTRLBUS_CONFIG_PROFILE_SDK2020
 #define CTRLBUS_CONFIG_PROFILE_SDK2020 1
 #endif
 
 /* GET_BASE_CONF_ADV (0x21), streamed from ctrlbus_base_config_t.binary_config. Off: the request
  * is answered 0x8000 (the Core then asks GET_BASE_CONF), and a config with a binary_config is
- * refused. Size effect: 108 B. */
+ * refused. Size effect: 28 B. */
 #ifndef CTRLBUS_CONFIG_CONF_ADV
 #define CTRLBUS_CONFIG_CONF_ADV 1
 #endif
