@@ -8,6 +8,7 @@ cd "$(dirname "$0")/.."
 APT_PACKAGES=(
   cmake ninja-build gcc make python3-venv
   qemu-system-arm gcc-arm-none-eabi libnewlib-arm-none-eabi   # Cortex-M3 firmware under QEMU
+  gcc-avr avr-libc gcc-riscv64-unknown-elf picolibc-riscv64-unknown-elf  # make size: AVR, RV32
   clang libclang-rt-14-dev                                     # libFuzzer + sanitizers
   valgrind                                                     # callgrind benchmarks
   tshark                                                       # Wireshark dissector test
