@@ -8,9 +8,14 @@
 #     what a firmware using that layer pays for; libgcc included, libc's memcpy/memset not);
 #   - for every object file as compiled (an upper bound: nothing dropped yet).
 # Then the sizes of the state structs on a 32-bit target, read from a compiled probe.
+# Then the base stack per target (cortex-m0plus/m3/m4, ATmega328P with avr-gcc, RV32 rv32imac with
+# riscv64-unknown-elf-gcc), in the default configuration and the minimal one (every switch of
+# c/include/ctrlbus/ctrlbus_config.h off), at -Os and -O2, each compiled warning-free with
+# -Wconversion and linked with --gc-sections, with the worst-case stack of ctrlbus_base_poll()
+# (-fstack-usage along the call graph: scripts/stack_usage.py).
 #
-#   scripts/size.sh            all three CPUs
-#   CPUS="cortex-m3" scripts/size.sh
+#   scripts/size.sh            all three CPUs, all five targets
+#   CPUS="cortex-m3" TARGETS="cortex-m3 atmega328p" scripts/size.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
