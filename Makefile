@@ -7,7 +7,7 @@ BUILD := build
 JOBS  ?= 2
 DEMO_ARGS ?=
 
-.PHONY: all setup c-build firmware ports c-test c-test-asan lint py-test test demo size bench fuzz fuzz-smoke clean
+.PHONY: all setup c-build firmware ports c-test c-test-config-off c-test-asan lint py-test test demo size bench fuzz fuzz-smoke clean
 
 all: test
 
@@ -32,6 +32,13 @@ ports: setup
 c-test: c-build
 	@ctest --test-dir $(BUILD)/c --output-on-failure -j $(JOBS)
 
+# The C tests again with every feature switch of ctrlbus_config.h off (c/tests/config_all_off.h).
+c-test-config-off: setup
+	@cmake -S c -B $(BUILD)/c-config-off -G Ninja -DCMAKE_BUILD_TYPE=Debug \
+	  -DCTRLBUS_CONFIG_HEADER=$(CURDIR)/c/tests/config_all_off.h >/dev/null
+	@cmake --build $(BUILD)/c-config-off -j $(JOBS)
+	@ctest --test-dir $(BUILD)/c-config-off --output-on-failure -j $(JOBS)
+
 # The same tests under AddressSanitizer + UndefinedBehaviorSanitizer.
 c-test-asan: setup
 	@cmake -S c -B $(BUILD)/c-asan -G Ninja -DCMAKE_BUILD_TYPE=Debug -DCTRLBUS_SANITIZE=ON >/dev/null
@@ -48,7 +55,7 @@ lint: setup
 py-test: c-build firmware ports
 	@cd python && ../$(VENV)/bin/pytest -q
 
-test: c-test c-test-asan lint py-test fuzz-smoke pictures
+test: c-test c-test-config-off c-test-asan lint py-test fuzz-smoke pictures
 	@echo "make test: all suites passed"
 
 # The pictures in docs/img drawn from their text sources in docs/diagrams (Graphviz .dot, mscgen

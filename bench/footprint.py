@@ -37,13 +37,24 @@ from findings import Findings
 
 NAME = "footprint"
 TITLE = "Footprint from make size (cortex-m0plus/m3/m4)"
-GOAL = "base stack ≤ 2 KiB .text on cortex-m0plus, ≤ 64 B instance state, no transmit buffer"
+GOAL = (
+    "base stack ≤ 4 KiB .text on cortex-m0plus (default configuration), ≤ 64 B instance state, "
+    "no transmit buffer"
+)
 
 SIZE_SCRIPT = REPO / "scripts" / "size.sh"
 CROSS = "arm-none-eabi-"
 CPUS = {FULL: ["cortex-m0plus", "cortex-m3", "cortex-m4"], SMOKE: ["cortex-m0plus"]}
 GOAL_CPU = "cortex-m0plus"
-TEXT_GOAL = 2048
+TEXT_GOAL = 4096
+MINIMAL_TEXT_GOAL = 1536
+STACK_GOAL = 256
+# scripts/size.sh's per-target table (TARGETS): base stack per target, configuration and -O level.
+TARGETS = {
+    FULL: ["cortex-m0plus", "cortex-m3", "cortex-m4", "atmega328p", "rv32imac"],
+    SMOKE: ["cortex-m0plus"],
+}
+_TARGET_ROW = re.compile(r"^(\S+)\s+(default|minimal)\s+(-O\w)\s+(\d+)\s+(\d+)\s+(\d+)\s+(\d+)\s*$")
 STATE_GOAL = 64
 # scripts/size.sh's compile flags, and the layer whose bytes are broken down.
 CFLAGS = ["-std=c99", "-Os", "-ffunction-sections", "-fdata-sections", "-Wall", "-Wextra", "-Werror"]
@@ -243,8 +254,23 @@ def run(ctx: BenchContext) -> Findings:
     if not BASE_HEADER.is_file():
         return Findings(PENDING, pending=["the C base stack (c/include/ctrlbus/base.h) is not written yet"])
     cpus = CPUS[ctx.mode]
-    output = run_command(ctx, ["env", f"CPUS={' '.join(cpus)}", str(SIZE_SCRIPT)])
+    targets = TARGETS[ctx.mode]
+    output = run_command(
+        ctx, ["env", f"CPUS={' '.join(cpus)}", f"TARGETS={' '.join(targets)}", str(SIZE_SCRIPT)]
+    )
     report = parse_size_report(output)
+    # target -> (config, opt) -> (.text, .data, .bss, worst stack of ctrlbus_base_poll)
+    per_target: dict[str, dict[tuple[str, str], tuple[int, int, int, int]]] = defaultdict(dict)
+    for line in output.splitlines():
+        if m := _TARGET_ROW.match(line):
+            per_target[m.group(1)][(m.group(2), m.group(3))] = (
+                int(m.group(4)),
+                int(m.group(5)),
+                int(m.group(6)),
+                int(m.group(7)),
+            )
+    if any(len(per_target.get(target, {})) != 4 for target in targets):
+        raise BenchError(f"scripts/size.sh printed no per-target table for {targets}:\n{output}")
     missing = [cpu for cpu in cpus if BASE_LAYER not in report.layers.get(cpu, {})]
     if missing or "ctrlbus_base_t" not in report.structs:
         raise BenchError(
@@ -334,6 +360,39 @@ def run(ctx: BenchContext) -> Findings:
                     "yes",
                 ]
             )
+    for target in targets:
+        for (config, opt), target_sizes in sorted(per_target[target].items()):
+            key = f"{target.replace('-', '_')}_{config}_{opt.lstrip('-')}"
+            for name, value in zip(("text", "data", "bss", "stack"), target_sizes, strict=True):
+                figures[f"{key}_{name}"] = value
+        cells = "; ".join(
+            f"{config} {opt}: {sizes[0]:,} B .text, {sizes[1]} B .data, stack {sizes[3]} B"
+            for (config, opt), sizes in sorted(per_target[target].items())
+        )
+        rows.append([f"{target}: base stack per configuration", "published", cells, "", "", "yes"])
+    minimal_text = per_target[GOAL_CPU][("minimal", "-Os")][0]
+    rows.append(
+        [
+            f"{GOAL_CPU} -Os: minimal configuration (every ctrlbus_config.h switch off)",
+            f"≤ {MINIMAL_TEXT_GOAL:,} B .text",
+            f"{minimal_text:,} B .text",
+            "",
+            f"{minimal_text / MINIMAL_TEXT_GOAL:.2f} × the goal",
+            "yes" if minimal_text <= MINIMAL_TEXT_GOAL else "**no**",
+        ]
+    )
+    poll_stack = per_target[GOAL_CPU][("default", "-Os")][3]
+    rows.append(
+        [
+            f"{GOAL_CPU} -Os: worst stack of ctrlbus_base_poll() (default configuration, "
+            "-fstack-usage along the call graph, callbacks not included)",
+            f"≤ {STACK_GOAL} B",
+            f"{poll_stack} B",
+            "",
+            f"{poll_stack / STACK_GOAL:.2f} × the goal",
+            "yes" if poll_stack <= STACK_GOAL else "**no**",
+        ]
+    )
     for struct in STRUCTS:
         if struct in report.structs:
             figures[f"sizeof_{struct}"] = report.structs[struct]

@@ -8,9 +8,14 @@
 #     what a firmware using that layer pays for; libgcc included, libc's memcpy/memset not);
 #   - for every object file as compiled (an upper bound: nothing dropped yet).
 # Then the sizes of the state structs on a 32-bit target, read from a compiled probe.
+# Then the base stack per target (cortex-m0plus/m3/m4, ATmega328P with avr-gcc, RV32 rv32imac with
+# riscv64-unknown-elf-gcc), in the default configuration and the minimal one (every switch of
+# c/include/ctrlbus/ctrlbus_config.h off), at -Os and -O2, each compiled warning-free with
+# -Wconversion and linked with --gc-sections, with the worst-case stack of ctrlbus_base_poll()
+# (-fstack-usage along the call graph: scripts/stack_usage.py).
 #
-#   scripts/size.sh            all three CPUs
-#   CPUS="cortex-m3" scripts/size.sh
+#   scripts/size.sh            all three CPUs, all five targets
+#   CPUS="cortex-m3" TARGETS="cortex-m3 atmega328p" scripts/size.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -127,4 +132,75 @@ else
   printf '  %-24s %s\n' "$BASE_STRUCT" "pending: c/include/ctrlbus/base.h not written yet"
 fi
 echo
-echo "goals (issue 3): base stack <= 2048 bytes .text on cortex-m0plus, <= 64 bytes of instance state, no transmit buffer"
+
+# ---- the base stack on every target, default and minimal configuration, with its worst stack ----
+# Targets: label|compiler|flags|objdump. A target whose compiler is missing fails the run.
+targets=(
+  "cortex-m0plus|arm-none-eabi-gcc|-mcpu=cortex-m0plus -mthumb|arm-none-eabi-objdump"
+  "cortex-m3|arm-none-eabi-gcc|-mcpu=cortex-m3 -mthumb|arm-none-eabi-objdump"
+  "cortex-m4|arm-none-eabi-gcc|-mcpu=cortex-m4 -mthumb|arm-none-eabi-objdump"
+  "atmega328p|avr-gcc|-mmcu=atmega328p|avr-objdump"
+  "rv32imac|riscv64-unknown-elf-gcc|-march=rv32imac -mabi=ilp32 --specs=picolibc.specs|riscv64-unknown-elf-objdump"
+)
+TARGETS=${TARGETS:-"cortex-m0plus cortex-m3 cortex-m4 atmega328p rv32imac"}
+# The minimal configuration: every switch of ctrlbus/ctrlbus_config.h off (what remains: the 13
+# mandatory requests, SYNC/ECHO, REBOOT/DFU, the error answers, the watchdog, the timeout).
+MINIMAL=(-DCTRLBUS_CONFIG_HEALTH=0 -DCTRLBUS_CONFIG_COMMAND_QUEUE=0 -DCTRLBUS_CONFIG_LIMITS=0
+  -DCTRLBUS_CONFIG_PROFILE_SDK2020=0 -DCTRLBUS_CONFIG_CONF_ADV=0 -DCTRLBUS_CONFIG_MASTER_CODECS=0)
+WARNINGS=(-Wall -Wextra -Wpedantic -Wconversion -Wsign-conversion -Werror)
+base_roots=$(declared_functions c/include/ctrlbus/base.h | sort -u)
+
+# build_base DIR CC "TARGET FLAGS" OPT [DEFINES...]: objects with .su files, the base stack linked
+# with --gc-sections (libgcc in, libc out) as DIR/base.elf, and with libc as DIR/stack.elf.
+build_base() {
+  local dir=$1 cc=$2 flags=$3 opt=$4
+  shift 4
+  mkdir -p "$dir"
+  local objs=() keep=()
+  for src in "${sources[@]}"; do
+    local obj="$dir/$(basename "${src%.c}").o"
+    # shellcheck disable=SC2086
+    (cd "$dir" && "$cc" $flags -std=c99 "$opt" -ffunction-sections -fdata-sections -fstack-usage \
+      "${WARNINGS[@]}" -I"$OLDPWD/c/include" "$@" -c "$OLDPWD/$src" -o "$obj")
+    objs+=("$obj")
+  done
+  for fn in $base_roots; do keep+=("-Wl,--undefined=$fn"); done
+  # shellcheck disable=SC2086
+  "$cc" ${flags//--specs=picolibc.specs/} -nostdlib -Wl,--gc-sections -Wl,--entry=ctrlbus_base_poll \
+    -Wl,--unresolved-symbols=ignore-all "${keep[@]}" -o "$dir/base.elf" "${objs[@]}" -lgcc
+  # shellcheck disable=SC2086
+  "$cc" $flags -nostdlib -Wl,--gc-sections -Wl,--entry=ctrlbus_base_poll "${keep[@]}" \
+    -o "$dir/stack.elf" "${objs[@]}" -Wl,--start-group -lc -lgcc -Wl,--end-group
+}
+
+echo "base stack per target: everything base.h declares, linked with --gc-sections (libgcc in, libc out);"
+echo "minimal = every switch of ctrlbus_config.h off; stack = worst case of ctrlbus_base_poll() along its"
+echo "call graph (-fstack-usage frames, scripts/stack_usage.py), plus the application's callbacks' own"
+printf '%-14s %-8s %-4s %7s %6s %6s %7s\n' "target" "config" "opt" ".text" ".data" ".bss" "stack"
+for target in "${targets[@]}"; do
+  IFS='|' read -r label cc flags objdump <<<"$target"
+  [[ " $TARGETS " == *" $label "* ]] || continue
+  if ! command -v "$cc" >/dev/null; then
+    echo "size.sh: $cc not found; scripts/setup.sh installs it" >&2
+    exit 2
+  fi
+  for config in default minimal; do
+    defines=()
+    if [ "$config" = minimal ]; then defines=("${MINIMAL[@]}"); fi
+    for opt in -Os -O2; do
+      dir="$work/targets/$label-$config$opt"
+      build_base "$dir" "$cc" "$flags" "$opt" "${defines[@]}"
+      SIZE_TOOL=${objdump%objdump}size
+      read -r text data bss < <("$SIZE_TOOL" -B "$dir/base.elf" | awk 'NR == 2 { print $1, $2, $3 }')
+      stack=$(python3 scripts/stack_usage.py "$objdump" "$dir/stack.elf" ctrlbus_base_poll "$dir"/*.su)
+      printf '%-14s %-8s %-4s %7s %6s %6s %7s\n' "$label" "$config" "$opt" "$text" "$data" "$bss" "${stack%% *}"
+      if [ "$label $config $opt" = "cortex-m0plus default -Os" ]; then worst_path=${stack#* }; fi
+    done
+  done
+done
+if [ -n "${worst_path:-}" ]; then
+  echo "worst stack path (cortex-m0plus, default, -Os): $worst_path"
+fi
+echo
+echo "goals (issue 13): cortex-m0plus -Os base stack <= 1536 B .text minimal, <= 4096 B default;"
+echo "ctrlbus_base_poll() stack <= 256 B (cortex-m0plus, default); ctrlbus_base_t <= 64 B; no transmit buffer"

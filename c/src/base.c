@@ -6,6 +6,8 @@
 
 #include "ctrlbus/diffdrive.h"
 
+#include "codec.h"
+
 /* base->flags */
 #define FLAG_WATCHDOG_EXPIRED 0x01u /* the current silence has been acted on */
 #define FLAG_MOTION_COMMANDED 0x02u /* the last motion command passed on was not zero */
@@ -25,9 +27,11 @@ static const uint16_t EVENT_ERRORS[] = {
     [CTRLBUS_RX_EMPTY_FRAME] = CTRLBUS_WIRE_ERR_FORMAT,
 };
 
+#if CTRLBUS_CONFIG_COMMAND_QUEUE
 /* The external commands a Core knows (docs/protocol.md §5.12). */
 static const uint8_t EXTERNAL_COMMANDS[] = {0x51, 0x52, 0x53, 0x80, 0x81, 0x82, 0x90,
                                             0xA0, 0xA1, 0xA2, 0xA3, 0xA4, 0xAF, 0xB0};
+#endif
 
 static void set_flags(ctrlbus_base_t *base, uint8_t flags)
 {
@@ -66,6 +70,8 @@ size_t ctrlbus_base_feed(ctrlbus_base_t *base, const uint8_t *data, size_t len)
 }
 
 /* ---- health registry ------------------------------------------------------------------------ */
+
+#if CTRLBUS_CONFIG_HEALTH
 
 /* With no storage the registry can only hold the watchdog's warning, which needs none. */
 static uint32_t health_code_at(const ctrlbus_base_t *base, uint8_t index)
@@ -140,7 +146,34 @@ uint8_t ctrlbus_base_health_count(const ctrlbus_base_t *base)
     return base != NULL ? base->health_count : 0u;
 }
 
+#else /* the registry compiled out: see ctrlbus/ctrlbus_config.h */
+
+int32_t ctrlbus_base_health_add(ctrlbus_base_t *base, uint32_t code, const char *message)
+{
+    (void)base;
+    (void)code;
+    (void)message;
+    return CTRLBUS_ERR_UNSUPPORTED;
+}
+
+int32_t ctrlbus_base_health_clear(ctrlbus_base_t *base, uint32_t code)
+{
+    (void)base;
+    (void)code;
+    return CTRLBUS_ERR_UNSUPPORTED;
+}
+
+uint8_t ctrlbus_base_health_count(const ctrlbus_base_t *base)
+{
+    (void)base;
+    return 0u;
+}
+
+#endif
+
 /* ---- external-command queue ----------------------------------------------------------------- */
+
+#if CTRLBUS_CONFIG_COMMAND_QUEUE
 
 static uint8_t command_capacity(const ctrlbus_base_t *base)
 {
@@ -216,6 +249,28 @@ uint8_t ctrlbus_base_commands_pending(const ctrlbus_base_t *base)
     return base != NULL ? base->command_count : 0u;
 }
 
+#else /* no external commands: see ctrlbus/ctrlbus_config.h */
+
+int32_t ctrlbus_base_queue_command(ctrlbus_base_t *base, uint8_t code)
+{
+    (void)base;
+    (void)code;
+    return CTRLBUS_ERR_UNSUPPORTED;
+}
+
+void ctrlbus_base_clear_commands(ctrlbus_base_t *base)
+{
+    (void)base;
+}
+
+uint8_t ctrlbus_base_commands_pending(const ctrlbus_base_t *base)
+{
+    (void)base;
+    return 0u;
+}
+
+#endif
+
 void ctrlbus_base_counters(const ctrlbus_base_t *base, ctrlbus_base_counters_t *out)
 {
     if (out == NULL) {
@@ -256,8 +311,10 @@ static void run_watchdog(ctrlbus_base_t *base, uint32_t now_ms)
     stop_motors(base);
     if (moving) {
         base->watchdog_trips++;
+#if CTRLBUS_CONFIG_HEALTH
         (void)ctrlbus_base_health_add(base, CTRLBUS_HEALTH_WATCHDOG_TRIPPED,
                                       CTRLBUS_HEALTH_WATCHDOG_TRIPPED_MESSAGE);
+#endif
     }
 }
 
@@ -272,6 +329,8 @@ static void note_motion(ctrlbus_base_t *base, bool clamped, bool moving)
         clear_flags(base, FLAG_MOTION_COMMANDED);
     }
 }
+
+#if CTRLBUS_CONFIG_LIMITS
 
 /* floor(x * factor / divisor), for divisor in 1..2^31 and a result below 2^32: shift-and-subtract
  * long division of the 48-bit product, in 32-bit words. The limits are the only division in the
@@ -332,6 +391,8 @@ static bool scale_to(int32_t *a, int32_t *b, int32_t peak_a, int32_t peak_b, uin
     return true;
 }
 
+#endif /* CTRLBUS_CONFIG_LIMITS */
+
 /* ---- answering ------------------------------------------------------------------------------ */
 
 static ctrlbus_frame_type_t answer_type(const ctrlbus_base_t *base)
@@ -357,117 +418,243 @@ static void restart(ctrlbus_base_t *base, uint32_t now_ms)
     ctrlbus_decoder_reset(&base->decoder);
 }
 
-/* Runs the application's part of a validated request and writes its OK answer. Returns 0 when
- * answered, else the ERROR code to answer with (nothing written yet then). */
+/* Whether the answers take the sdk2020 forms (a constant false without that profile). */
+static bool sdk2020(const ctrlbus_base_config_t *config)
+{
+#if CTRLBUS_CONFIG_PROFILE_SDK2020
+    return config->profile == CTRLBUS_PROFILE_SDK2020;
+#else
+    (void)config;
+    return false;
+#endif
+}
+
+/* SET_BASE_MOTOR: the wheel limit, then the handler. Returns the handler's result. */
+static int32_t set_wheel_speeds(ctrlbus_base_t *base, const ctrlbus_set_base_motor_request_t *motor)
+{
+    const ctrlbus_base_config_t *config = base->config;
+    int32_t left = motor->speeds_mm_s[0];
+    int32_t right = motor->speeds_mm_s[1];
+    bool clamped = false;
+#if CTRLBUS_CONFIG_LIMITS
+    clamped = scale_to(&left, &right, left, right, config->limits.max_wheel_mm_s);
+#endif
+    note_motion(base, clamped, left != 0 || right != 0);
+    return config->set_wheel_speeds(config->context, left, right);
+}
+
+/* SET_V_AND_GET_DEADRECKON: the limits, the handler, then the profile's timestamp. Returns the
+ * handler's result. */
+static int32_t set_velocity(ctrlbus_base_t *base, ctrlbus_set_v_and_get_deadreckon_request_t v,
+                            ctrlbus_set_v_and_get_deadreckon_answer_t *out, uint32_t now_ms)
+{
+    const ctrlbus_base_config_t *config = base->config;
+    bool clamped = false;
+#if CTRLBUS_CONFIG_LIMITS
+    const ctrlbus_base_limits_t *limits = &config->limits;
+    clamped = clamp_to(&v.vx_mps_q16, limits->max_vx_mps_q16);
+    clamped = clamp_to(&v.omega_radps_q16, limits->max_omega_radps_q16) || clamped;
+    if (limits->wheel_track_mm != 0u) {
+        int32_t left = 0;
+        int32_t right = 0;
+        ctrlbus_diffdrive_wheel_speeds(v.vx_mps_q16, v.omega_radps_q16, limits->wheel_track_mm,
+                                       &left, &right);
+        clamped =
+            scale_to(&v.vx_mps_q16, &v.omega_radps_q16, left, right, limits->max_wheel_mm_s) ||
+            clamped;
+    }
+#endif
+    note_motion(base, clamped, v.vx_mps_q16 != 0 || v.vy_mps_q16 != 0 || v.omega_radps_q16 != 0);
+    int32_t result = config->set_velocity(config->context, &v, out);
+    if (!sdk2020(config)) {
+        out->has_timestamp_ms = false;
+    } else if (!out->has_timestamp_ms) {
+        out->has_timestamp_ms = true;
+        out->timestamp_ms = now_ms - base->boot_ms;
+    }
+    return result;
+}
+
+/* HEALTH_GET_HEALTH: the levels of the registered errors and their number. */
+static void health_summary(const ctrlbus_base_t *base, ctrlbus_health_get_health_answer_t *out)
+{
+    out->flags = 0;
+    out->error_count = 0;
+#if CTRLBUS_CONFIG_HEALTH
+    for (uint8_t i = 0; i < base->health_count; i++) {
+        uint32_t level = health_code_at(base, i) >> 24;
+        out->flags = (uint8_t)(out->flags | (level & HEALTH_LEVEL_BITS));
+    }
+    out->error_count = base->health_count;
+#else
+    (void)base;
+#endif
+}
+
+/* HEALTH_GET_ERROR: the entry at index. Returns false when there is none. */
+static bool health_entry(const ctrlbus_base_t *base, uint8_t index,
+                         ctrlbus_health_get_error_answer_t *out)
+{
+#if CTRLBUS_CONFIG_HEALTH
+    if (index >= base->health_count) {
+        return false;
+    }
+    out->error_code = health_code_at(base, index);
+    const char *message = health_message_at(base, index);
+    for (size_t i = 0; message != NULL && message[i] != '\0' && i < HEALTH_MESSAGE_MAX; i++) {
+        out->message[i] = message[i];
+    }
+    return true;
+#else
+    (void)base;
+    (void)index;
+    (void)out;
+    return false;
+#endif
+}
+
+/* POLL_BASE_CMD: the command at the head of the queue, in the profile's form. */
+static void poll_answer(const ctrlbus_base_t *base, ctrlbus_poll_base_cmd_answer_t *out)
+{
+#if CTRLBUS_CONFIG_COMMAND_QUEUE
+    out->has_command = base->command_count != 0u;
+    out->command = out->has_command ? command_at_head(base) : 0u;
+#endif
+    /* Nothing pending: OK 0 (base_ref v4), or FF 00 for the SDK's fixed-size read. */
+    out->payload_size =
+        out->has_command || sdk2020(base->config) ? CTRLBUS_POLL_BASE_CMD_ANSWER_SIZE : 0u;
+}
+
+/* Where a request's answer struct lives while its handler fills it and it is written. Only one
+ * member is in use per request, and only that member is zeroed: this is storage, not a tagged
+ * answer (nothing switches on it again). Its size is GET_BASE_CONF's answer, the largest. */
+typedef union {
+    ctrlbus_connect_base_answer_t connect_base;
+    ctrlbus_get_base_conf_answer_t get_base_conf;
+    ctrlbus_get_base_conf_adv_answer_t get_base_conf_adv;
+    ctrlbus_get_base_status_answer_t get_base_status;
+    ctrlbus_get_base_motor_data_answer_t get_base_motor_data;
+    ctrlbus_get_base_sensor_data_answer_t get_base_sensor_data;
+    ctrlbus_get_base_bumper_data_answer_t get_base_bumper_data;
+    ctrlbus_get_charger_data_answer_t get_charger_data;
+    ctrlbus_set_v_and_get_deadreckon_answer_t set_v_and_get_deadreckon;
+    ctrlbus_poll_base_cmd_answer_t poll_base_cmd;
+    ctrlbus_health_get_health_answer_t health_get_health;
+    ctrlbus_health_get_error_answer_t health_get_error;
+} answer_storage_t;
+
+/* Runs the application's part of a validated request and writes its answer: one switch on the
+ * request; its case zeroes and fills its own answer struct, checks it and computes its size once
+ * (the layout's _size, or the constant), and names its layout's field writer; one common write
+ * streams the frame. Returns 0 when answered, else the ERROR code to answer with (nothing
+ * written yet then). */
 static uint16_t answer_request(ctrlbus_base_t *base, const ctrlbus_request_t *request,
                                ctrlbus_sink_t *sink, uint32_t now_ms)
 {
     const ctrlbus_base_config_t *config = base->config;
     void *context = config->context;
-    bool sdk2020 = config->profile == CTRLBUS_PROFILE_SDK2020;
-    ctrlbus_answer_t answer;
-    memset(&answer, 0, sizeof answer); /* handlers fill in what they know; the rest is zero */
-    answer.kind = CTRLBUS_ANSWER_OK;
-    answer.to = request->kind;
-    int32_t result = CTRLBUS_ERR_UNSUPPORTED; /* a request whose handler is missing */
+    answer_storage_t out;
+    int32_t result = CTRLBUS_ERR_UNSUPPORTED; /* the handler's; unsupported while it is missing */
+    int32_t size = 0;                         /* the OK payload's; negative: a struct refused */
+    ctrlbus_codec_put_fn put = NULL;          /* its fields; NULL: an empty OK */
     switch (request->kind) {
-    case CTRLBUS_REQ_CONNECT_BASE: {
-        ctrlbus_connect_base_answer_t *out = &answer.as.connect_base;
+    case CTRLBUS_REQ_CONNECT_BASE:
         if (config->connect_info != NULL) {
-            result = config->connect_info(context, out);
+            memset(&out.connect_base, 0, sizeof out.connect_base);
+            result = config->connect_info(context, &out.connect_base);
+            out.connect_base.has_firmware_version_suffix = sdk2020(config); /* the profile's size */
+            size = ctrlbus_connect_base_answer_size(&out.connect_base);
+            put = ctrlbus_codec_connect_base_fields;
         }
-        out->has_firmware_version_suffix = sdk2020; /* the profile decides the size */
         break;
-    }
     case CTRLBUS_REQ_GET_BASE_CONF:
         if (config->base_config != NULL) {
-            result = config->base_config(context, &answer.as.get_base_conf);
+            memset(&out.get_base_conf, 0, sizeof out.get_base_conf);
+            result = config->base_config(context, &out.get_base_conf);
+            size = ctrlbus_get_base_conf_answer_size(&out.get_base_conf);
+            put = ctrlbus_codec_get_base_conf_fields;
         }
         break;
+#if CTRLBUS_CONFIG_CONF_ADV
     case CTRLBUS_REQ_GET_BASE_CONF_ADV:
         if (config->binary_config != NULL && config->binary_config_size != 0u) {
-            answer.as.get_base_conf_adv.blob = config->binary_config;
-            answer.as.get_base_conf_adv.blob_len = config->binary_config_size;
+            out.get_base_conf_adv.blob = config->binary_config;
+            out.get_base_conf_adv.blob_len = config->binary_config_size; /* init checked it */
             result = CTRLBUS_OK;
+            size = config->binary_config_size;
+            put = ctrlbus_codec_get_base_conf_adv_fields;
         }
         break;
+#endif
     case CTRLBUS_REQ_GET_BASE_STATUS:
         if (config->status != NULL) {
-            result = config->status(context, &answer.as.get_base_status);
+            memset(&out.get_base_status, 0, sizeof out.get_base_status);
+            result = config->status(context, &out.get_base_status);
+            size = CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE;
+            put = ctrlbus_codec_get_base_status_fields;
         }
         break;
     case CTRLBUS_REQ_GET_BASE_MOTOR_DATA:
         if (config->motor_data != NULL) {
-            result = config->motor_data(context, &answer.as.get_base_motor_data);
+            memset(&out.get_base_motor_data, 0, sizeof out.get_base_motor_data);
+            result = config->motor_data(context, &out.get_base_motor_data);
+            size = CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE;
+            put = ctrlbus_codec_get_base_motor_data_fields;
         }
         break;
     case CTRLBUS_REQ_GET_BASE_SENSOR_DATA:
         if (config->sensor_data != NULL) {
-            result = config->sensor_data(context, &answer.as.get_base_sensor_data);
+            memset(&out.get_base_sensor_data, 0, sizeof out.get_base_sensor_data);
+            result = config->sensor_data(context, &out.get_base_sensor_data);
+            size = CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE;
+            put = ctrlbus_codec_get_base_sensor_data_fields;
         }
         break;
-    case CTRLBUS_REQ_GET_BASE_BUMPER_DATA: {
-        ctrlbus_get_base_bumper_data_answer_t *out = &answer.as.get_base_bumper_data;
+    case CTRLBUS_REQ_GET_BASE_BUMPER_DATA:
         if (config->bumper_data != NULL) {
-            result = config->bumper_data(context, out);
-        }
-        if (out->payload_size == 0u || sdk2020) {
-            out->payload_size = CTRLBUS_GET_BASE_BUMPER_DATA_ANSWER_SIZE; /* same value, padded */
+            memset(&out.get_base_bumper_data, 0, sizeof out.get_base_bumper_data);
+            result = config->bumper_data(context, &out.get_base_bumper_data);
+            if (out.get_base_bumper_data.payload_size == 0u || sdk2020(config)) {
+                /* same value, padded */
+                out.get_base_bumper_data.payload_size = CTRLBUS_GET_BASE_BUMPER_DATA_ANSWER_SIZE;
+            }
+            size = ctrlbus_get_base_bumper_data_answer_size(&out.get_base_bumper_data);
+            put = ctrlbus_codec_get_base_bumper_data_fields;
         }
         break;
-    }
     case CTRLBUS_REQ_GET_CHARGER_DATA:
         if (config->charger_data != NULL) {
-            result = config->charger_data(context, &answer.as.get_charger_data);
+            memset(&out.get_charger_data, 0, sizeof out.get_charger_data);
+            result = config->charger_data(context, &out.get_charger_data);
+            size = ctrlbus_get_charger_data_answer_size(&out.get_charger_data);
+            put = ctrlbus_codec_get_charger_data_fields;
         }
         break;
     case CTRLBUS_REQ_SET_BASE_MOTOR:
         if (config->set_wheel_speeds != NULL) {
-            int32_t left = request->as.set_base_motor.speeds_mm_s[0];
-            int32_t right = request->as.set_base_motor.speeds_mm_s[1];
-            bool clamped = scale_to(&left, &right, left, right, config->limits.max_wheel_mm_s);
-            note_motion(base, clamped, left != 0 || right != 0);
-            result = config->set_wheel_speeds(context, left, right);
+            result = set_wheel_speeds(base, &request->as.set_base_motor);
         }
         break;
     case CTRLBUS_REQ_SET_V_AND_GET_DEADRECKON:
         if (config->set_velocity != NULL) {
-            const ctrlbus_base_limits_t *limits = &config->limits;
-            ctrlbus_set_v_and_get_deadreckon_request_t v = request->as.set_v_and_get_deadreckon;
-            bool clamped = clamp_to(&v.vx_mps_q16, limits->max_vx_mps_q16);
-            clamped = clamp_to(&v.omega_radps_q16, limits->max_omega_radps_q16) || clamped;
-            if (limits->wheel_track_mm != 0u) {
-                int32_t left = 0;
-                int32_t right = 0;
-                ctrlbus_diffdrive_wheel_speeds(v.vx_mps_q16, v.omega_radps_q16,
-                                               limits->wheel_track_mm, &left, &right);
-                clamped = scale_to(&v.vx_mps_q16, &v.omega_radps_q16, left, right,
-                                   limits->max_wheel_mm_s) ||
-                          clamped;
-            }
-            note_motion(base, clamped,
-                        v.vx_mps_q16 != 0 || v.vy_mps_q16 != 0 || v.omega_radps_q16 != 0);
-            ctrlbus_set_v_and_get_deadreckon_answer_t *out = &answer.as.set_v_and_get_deadreckon;
-            result = config->set_velocity(context, &v, out);
-            if (!sdk2020) {
-                out->has_timestamp_ms = false;
-            } else if (!out->has_timestamp_ms) {
-                out->has_timestamp_ms = true;
-                out->timestamp_ms = now_ms - base->boot_ms;
-            }
+            memset(&out.set_v_and_get_deadreckon, 0, sizeof out.set_v_and_get_deadreckon);
+            result = set_velocity(base, request->as.set_v_and_get_deadreckon,
+                                  &out.set_v_and_get_deadreckon, now_ms);
+            size = ctrlbus_set_v_and_get_deadreckon_answer_size(&out.set_v_and_get_deadreckon);
+            put = ctrlbus_codec_set_v_and_get_deadreckon_fields;
         }
         break;
-    case CTRLBUS_REQ_POLL_BASE_CMD: {
-        ctrlbus_poll_base_cmd_answer_t *out = &answer.as.poll_base_cmd;
-        out->has_command = base->command_count != 0u;
-        out->command = out->has_command ? command_at_head(base) : 0u;
-        /* Nothing pending: OK 0 (base_ref v4), or FF 00 for the SDK's fixed-size read. */
-        out->payload_size = out->has_command || sdk2020 ? CTRLBUS_POLL_BASE_CMD_ANSWER_SIZE : 0u;
+    case CTRLBUS_REQ_POLL_BASE_CMD:
+        memset(&out.poll_base_cmd, 0, sizeof out.poll_base_cmd);
+        poll_answer(base, &out.poll_base_cmd);
         result = CTRLBUS_OK;
+        size = out.poll_base_cmd.payload_size; /* 0 or 2, consistent by construction */
+        put = ctrlbus_codec_poll_base_cmd_fields;
         break;
-    }
     case CTRLBUS_REQ_POLL_BASE_ANS_CMD:
+#if CTRLBUS_CONFIG_COMMAND_QUEUE
         command_taken(base);
+#endif
         result = CTRLBUS_OK;
         break;
     case CTRLBUS_REQ_SEND_EVENT:
@@ -476,60 +663,52 @@ static uint16_t answer_request(ctrlbus_base_t *base, const ctrlbus_request_t *re
                      : CTRLBUS_OK;
         break;
     case CTRLBUS_REQ_HEALTH_GET_HEALTH:
-        for (uint8_t i = 0; i < base->health_count; i++) {
-            uint32_t level = health_code_at(base, i) >> 24;
-            answer.as.health_get_health.flags =
-                (uint8_t)(answer.as.health_get_health.flags | (level & HEALTH_LEVEL_BITS));
-        }
-        answer.as.health_get_health.error_count = base->health_count;
+        health_summary(base, &out.health_get_health);
         result = CTRLBUS_OK;
+        size = CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE;
+        put = ctrlbus_codec_health_get_health_fields;
         break;
-    case CTRLBUS_REQ_HEALTH_GET_ERROR: {
-        uint8_t index = request->as.health_get_error.index;
-        if (index >= base->health_count) {
+    case CTRLBUS_REQ_HEALTH_GET_ERROR:
+        memset(&out.health_get_error, 0, sizeof out.health_get_error);
+        if (!health_entry(base, request->as.health_get_error.index, &out.health_get_error)) {
             return CTRLBUS_WIRE_ERR_OPERATION;
         }
-        answer.as.health_get_error.error_code = health_code_at(base, index);
-        const char *message = health_message_at(base, index);
-        for (size_t i = 0; message != NULL && message[i] != '\0' && i < HEALTH_MESSAGE_MAX; i++) {
-            answer.as.health_get_error.message[i] = message[i];
-        }
         result = CTRLBUS_OK;
+        size = ctrlbus_health_get_error_answer_size(&out.health_get_error);
+        put = ctrlbus_codec_health_get_error_fields;
         break;
-    }
     case CTRLBUS_REQ_HEALTH_CLR_ERROR:
         if (ctrlbus_base_health_clear(base, request->as.health_clr_error.error_code) <= 0) {
-            return CTRLBUS_WIRE_ERR_OPERATION;
+            return CTRLBUS_WIRE_ERR_OPERATION; /* not registered (or no registry) */
         }
         result = CTRLBUS_OK;
         break;
-    case CTRLBUS_REQ_BASE_CMD:
-        /* Its hook runs once the answer is out (below). */
-        if (request->as.base_cmd.subcommand == CTRLBUS_BASE_CMD_REBOOT) {
-            result = config->reboot != NULL ? CTRLBUS_OK : result;
-        } else {
-            result = config->enter_dfu != NULL ? CTRLBUS_OK : result;
+    case CTRLBUS_REQ_BASE_CMD: {
+        /* Its hook runs once the answer is out. */
+        bool reboot = request->as.base_cmd.subcommand == CTRLBUS_BASE_CMD_REBOOT;
+        void (*hook)(void *) = reboot ? config->reboot : config->enter_dfu;
+        if (hook == NULL) {
+            break;
         }
-        break;
-    default: break; /* GET_AUXILIARY_ANCHOR has no layout: unsupported (§5.9) */
+        (void)ctrlbus_codec_write_ok(sink, 0, NULL, NULL, answer_type(base));
+        if (reboot) {
+            restart(base, now_ms); /* what a handler that returns (a host base) finds */
+        }
+        hook(context);
+        return 0;
+    }
+    default: break; /* GET_AUXILIARY_ANCHOR has no layout, and features compiled out: 0x8000 */
     }
     if (result < 0) {
         return handler_error(result);
     }
-    /* A struct the codec refuses (text that is not ASCII, a count over 8, ...) is a handler
+    /* A struct the check refuses (text that is not ASCII, a count over 8, ...) is a handler
      * failure; it is found before any byte goes out. */
-    if (ctrlbus_answer_payload_size(&answer) < 0) {
+    if (size < 0) {
         return CTRLBUS_WIRE_ERR_OPERATION;
     }
-    (void)ctrlbus_answer_write(sink, &answer, answer_type(base));
-    if (request->kind == CTRLBUS_REQ_BASE_CMD) {
-        if (request->as.base_cmd.subcommand == CTRLBUS_BASE_CMD_REBOOT) {
-            restart(base, now_ms); /* what a handler that returns (a host base) finds */
-            config->reboot(context);
-        } else {
-            config->enter_dfu(context);
-        }
-    }
+    /* A write callback's failure cuts this answer short; there is nothing more to say. */
+    (void)ctrlbus_codec_write_ok(sink, size, put, &out, answer_type(base));
     return 0;
 }
 
@@ -630,6 +809,31 @@ void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
     (void)dropped_after_reboot(base);
 }
 
+/* Whether config asks for a feature that this build compiled out (ctrlbus/ctrlbus_config.h). */
+static bool needs_missing_feature(const ctrlbus_base_config_t *config)
+{
+    bool missing = false;
+#if !CTRLBUS_CONFIG_HEALTH
+    missing = missing || config->health_entries != NULL;
+#endif
+#if !CTRLBUS_CONFIG_COMMAND_QUEUE
+    missing = missing || config->command_queue != NULL;
+#endif
+#if !CTRLBUS_CONFIG_LIMITS
+    const ctrlbus_base_limits_t *limits = &config->limits;
+    missing = missing || limits->max_wheel_mm_s != 0u || limits->wheel_track_mm != 0u ||
+              limits->max_vx_mps_q16 != 0u || limits->max_omega_radps_q16 != 0u;
+#endif
+#if !CTRLBUS_CONFIG_PROFILE_SDK2020
+    missing = missing || config->profile == CTRLBUS_PROFILE_SDK2020;
+#endif
+#if !CTRLBUS_CONFIG_CONF_ADV
+    missing = missing || config->binary_config != NULL;
+#endif
+    (void)config;
+    return missing;
+}
+
 int32_t ctrlbus_base_init(ctrlbus_base_t *base, const ctrlbus_base_config_t *config,
                           uint32_t now_ms)
 {
@@ -639,6 +843,9 @@ int32_t ctrlbus_base_init(ctrlbus_base_t *base, const ctrlbus_base_config_t *con
          config->profile != CTRLBUS_PROFILE_SDK2020) ||
         (config->profile == CTRLBUS_PROFILE_SDK2020 && config->standard_answers)) {
         return CTRLBUS_ERR_ARGUMENT;
+    }
+    if (needs_missing_feature(config)) {
+        return CTRLBUS_ERR_UNSUPPORTED;
     }
     uint16_t timeout = config->frame_timeout_ms;
     if (timeout == 0u) {

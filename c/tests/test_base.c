@@ -47,8 +47,12 @@ static uint32_t now;
 
 static uint8_t rx_ring[4096];
 static uint8_t frame_buffer[CTRLBUS_FRAME_MAX];
+#if CTRLBUS_CONFIG_HEALTH
 static ctrlbus_base_health_entry_t health_storage[4];
+#endif
+#if CTRLBUS_CONFIG_COMMAND_QUEUE
 static uint8_t command_storage[3];
+#endif
 static const uint8_t BLOB[300] = {0x50, 0x01, 0x04, 0x30, 0x07, 'c', 't', 'r', 'l', 'b', 'u', 's'};
 static ctrlbus_decoder_stats_t decoder_stats;
 
@@ -217,7 +221,8 @@ static void app_command_line(void *context, bool asserted)
     app.line_low = asserted;
 }
 
-/* A configuration with every handler and every optional buffer. */
+/* A configuration with every handler and every optional buffer that this build's feature
+ * switches allow (ctrlbus/ctrlbus_config.h). */
 static ctrlbus_base_config_t full_config(void)
 {
     ctrlbus_base_config_t c;
@@ -226,12 +231,18 @@ static ctrlbus_base_config_t full_config(void)
     c.rx_ring_size = sizeof rx_ring;
     c.frame_buffer = frame_buffer;
     c.frame_buffer_size = CTRLBUS_BASE_FRAME_BUFFER_RECOMMENDED;
+#if CTRLBUS_CONFIG_HEALTH
     c.health_entries = health_storage;
     c.health_capacity = (uint8_t)(sizeof health_storage / sizeof health_storage[0]);
+#endif
+#if CTRLBUS_CONFIG_COMMAND_QUEUE
     c.command_queue = command_storage;
     c.command_queue_size = sizeof command_storage;
+#endif
+#if CTRLBUS_CONFIG_CONF_ADV
     c.binary_config = BLOB;
     c.binary_config_size = sizeof BLOB;
+#endif
     c.decoder_stats = &decoder_stats;
     c.write = capture_write;
     c.connect_info = app_connect;
@@ -442,9 +453,12 @@ static void test_init_refuses_bad_configurations(void)
     /* NULL instances are harmless everywhere. */
     CHECK_EQ(ctrlbus_base_feed(NULL, BLOB, 1), 0);
     ctrlbus_base_poll(NULL, 0);
-    CHECK_EQ(ctrlbus_base_health_add(NULL, 1, NULL), CTRLBUS_ERR_ARGUMENT);
-    CHECK_EQ(ctrlbus_base_health_clear(NULL, 1), CTRLBUS_ERR_ARGUMENT);
-    CHECK_EQ(ctrlbus_base_queue_command(NULL, 0x90), CTRLBUS_ERR_ARGUMENT);
+    CHECK_EQ(ctrlbus_base_health_add(NULL, 1, NULL),
+             CTRLBUS_CONFIG_HEALTH ? CTRLBUS_ERR_ARGUMENT : CTRLBUS_ERR_UNSUPPORTED);
+    CHECK_EQ(ctrlbus_base_health_clear(NULL, 1),
+             CTRLBUS_CONFIG_HEALTH ? CTRLBUS_ERR_ARGUMENT : CTRLBUS_ERR_UNSUPPORTED);
+    CHECK_EQ(ctrlbus_base_queue_command(NULL, 0x90),
+             CTRLBUS_CONFIG_COMMAND_QUEUE ? CTRLBUS_ERR_ARGUMENT : CTRLBUS_ERR_UNSUPPORTED);
     CHECK_EQ(ctrlbus_base_health_count(NULL), 0);
     CHECK_EQ(ctrlbus_base_commands_pending(NULL), 0);
     ctrlbus_base_clear_commands(NULL);
@@ -1004,6 +1018,15 @@ static void test_watchdog_trips_after_1000_ms_and_shows_in_health(void)
     uint8_t flags = 0;
     uint8_t count = 0;
     get_health(&flags, &count);
+#if !CTRLBUS_CONFIG_HEALTH
+    /* No registry: the trip is counted, but the Core reads a healthy base. */
+    CHECK_EQ(flags, 0);
+    CHECK_EQ(count, 0);
+    request_hex("90 02 00");
+    expect_error(CTRLBUS_WIRE_ERR_OPERATION);
+    expect_nothing_more();
+    return;
+#endif
     CHECK_EQ(flags, CTRLBUS_HEALTH_WARNING);
     CHECK_EQ(count, 1);
     request_hex("90 02 00");
@@ -1397,8 +1420,12 @@ static void test_command_queue_without_storage_holds_one(void)
 static void test_reboot_answers_first_then_resets(void)
 {
     setup();
+#if CTRLBUS_CONFIG_HEALTH
     CHECK_EQ(ctrlbus_base_health_add(&base, 5, "app"), 1);
+#endif
+#if CTRLBUS_CONFIG_COMMAND_QUEUE
     CHECK_EQ(ctrlbus_base_queue_command(&base, 0x90), CTRLBUS_OK);
+#endif
     set_motor(10, 10);
     expect_ok(0);
     /* REBOOT, and a request behind it in the same burst: a resetting base does not hear it. */
@@ -1428,19 +1455,99 @@ static void test_reboot_answers_first_then_resets(void)
     expect_ok(2);
 
     /* ENTER_DFU: OK, then the handler; nothing is reset. */
+#if CTRLBUS_CONFIG_HEALTH
     CHECK_EQ(ctrlbus_base_health_add(&base, 5, "app"), 1);
+#endif
     feed_hex("10 02 F9 01 EA");
     ctrlbus_base_poll(&base, now);
     CHECK_EQ(app.dfu_calls, 1);
     CHECK_EQ(app.output_at_reboot, output_len);
     expect_ok(0);
-    CHECK_EQ(ctrlbus_base_health_count(&base), 1);
+    CHECK_EQ(ctrlbus_base_health_count(&base), CTRLBUS_CONFIG_HEALTH ? 1 : 0);
     /* Malformed BASE_CMD. */
     feed_hex("10 01 F9 E8  10 03 F9 02 00 E8  10 02 F9 03 E8");
     ctrlbus_base_poll(&base, now);
     expect_error(CTRLBUS_WIRE_ERR_FORMAT);
     expect_error(CTRLBUS_WIRE_ERR_FORMAT);
     expect_error(CTRLBUS_WIRE_ERR_UNSUPPORTED);
+    expect_nothing_more();
+}
+
+/* ---- features compiled out (ctrlbus/ctrlbus_config.h) --------------------------------------- */
+
+/* What a switch that is off leaves: init refuses a config that asks for the feature, its API
+ * fails with CTRLBUS_ERR_UNSUPPORTED, an optional request it served is answered 0x8000, and a
+ * mandatory one is answered as by a base with nothing to report. In the default build (every
+ * switch on) there is nothing to check here. */
+static void test_compiled_out_features_answer_and_fail_clearly(void)
+{
+    setup();
+    ctrlbus_base_config_t asks = full_config();
+    (void)asks;
+#if !CTRLBUS_CONFIG_HEALTH
+    static ctrlbus_base_health_entry_t entries[2];
+    asks = full_config();
+    asks.health_entries = entries;
+    asks.health_capacity = 2;
+    CHECK_EQ(ctrlbus_base_init(&base, &asks, now), CTRLBUS_ERR_UNSUPPORTED);
+    CHECK(start());
+    CHECK_EQ(ctrlbus_base_health_add(&base, 5, "app"), CTRLBUS_ERR_UNSUPPORTED);
+    CHECK_EQ(ctrlbus_base_health_clear(&base, 5), CTRLBUS_ERR_UNSUPPORTED);
+    CHECK_EQ(ctrlbus_base_health_count(&base), 0);
+    request_hex("90 01");
+    const uint8_t *health = expect_ok(CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE);
+    if (health != NULL) {
+        CHECK_EQ(health[0], 0);
+        CHECK_EQ(health[1], 0);
+    }
+    request_hex("90 02 00");
+    expect_error(CTRLBUS_WIRE_ERR_OPERATION);
+    request_hex("90 03 00 80 03 01");
+    expect_error(CTRLBUS_WIRE_ERR_OPERATION);
+#endif
+#if !CTRLBUS_CONFIG_COMMAND_QUEUE
+    static uint8_t queue[2];
+    asks = full_config();
+    asks.command_queue = queue;
+    asks.command_queue_size = 2;
+    CHECK_EQ(ctrlbus_base_init(&base, &asks, now), CTRLBUS_ERR_UNSUPPORTED);
+    CHECK(start());
+    CHECK_EQ(ctrlbus_base_queue_command(&base, 0x90), CTRLBUS_ERR_UNSUPPORTED);
+    CHECK_EQ(ctrlbus_base_commands_pending(&base), 0);
+    ctrlbus_base_clear_commands(&base);
+    CHECK_EQ(app.line_calls, 0);
+    request_hex("50");
+    expect_ok(0); /* nothing pending, the reference's form */
+    request_hex("5F");
+    expect_ok(0);
+#endif
+#if !CTRLBUS_CONFIG_LIMITS
+    asks = full_config();
+    asks.limits.max_wheel_mm_s = 100;
+    CHECK_EQ(ctrlbus_base_init(&base, &asks, now), CTRLBUS_ERR_UNSUPPORTED);
+    asks = full_config();
+    asks.limits.max_omega_radps_q16 = 65536;
+    CHECK_EQ(ctrlbus_base_init(&base, &asks, now), CTRLBUS_ERR_UNSUPPORTED);
+    CHECK(start());
+    set_motor(5000, -5000); /* passed on unchanged */
+    expect_ok(0);
+    CHECK_EQ(app.left_mm_s, 5000);
+    CHECK_EQ(app.right_mm_s, -5000);
+#endif
+#if !CTRLBUS_CONFIG_PROFILE_SDK2020
+    asks = full_config();
+    asks.profile = CTRLBUS_PROFILE_SDK2020;
+    CHECK_EQ(ctrlbus_base_init(&base, &asks, now), CTRLBUS_ERR_UNSUPPORTED);
+#endif
+#if !CTRLBUS_CONFIG_CONF_ADV
+    asks = full_config();
+    asks.binary_config = BLOB;
+    asks.binary_config_size = sizeof BLOB;
+    CHECK_EQ(ctrlbus_base_init(&base, &asks, now), CTRLBUS_ERR_UNSUPPORTED);
+    CHECK(start());
+    request_hex("21");
+    expect_error(CTRLBUS_WIRE_ERR_UNSUPPORTED); /* the Core then asks GET_BASE_CONF */
+#endif
     expect_nothing_more();
 }
 
@@ -1727,7 +1834,9 @@ int main(void)
     RUN(test_sync_and_echo_are_copied_verbatim);
     RUN(test_connect_base);
     RUN(test_get_base_conf_is_a_long_frame);
-    RUN(test_binary_config_is_streamed_from_the_callers_array);
+    if (CTRLBUS_CONFIG_CONF_ADV) {
+        RUN(test_binary_config_is_streamed_from_the_callers_array);
+    }
     RUN(test_telemetry_requests);
     RUN(test_motion_requests);
     RUN(test_events);
@@ -1740,19 +1849,36 @@ int main(void)
     RUN(test_answer_frame_types);
     RUN(test_answers_keep_stream_order);
     RUN(test_a_failing_write_cuts_one_answer_only);
-    RUN(test_sdk2020_profile);
+    if (CTRLBUS_CONFIG_PROFILE_SDK2020) {
+        RUN(test_sdk2020_profile);
+    }
     RUN(test_watchdog_trips_after_1000_ms_and_shows_in_health);
     RUN(test_watchdog_idle_expiry_and_what_feeds_it);
     RUN(test_watchdog_period_and_off);
     RUN(test_watchdog_across_clock_wrap);
-    RUN(test_wheel_limit_scales_both_wheels);
-    RUN(test_velocity_limits);
-    RUN(test_health_registry);
-    RUN(test_health_without_storage_holds_the_watchdog_warning);
-    RUN(test_full_health_registry_does_not_stop_the_watchdog);
-    RUN(test_external_command_queue);
-    RUN(test_command_queue_without_storage_holds_one);
+    if (CTRLBUS_CONFIG_LIMITS) {
+        RUN(test_wheel_limit_scales_both_wheels);
+    }
+    if (CTRLBUS_CONFIG_LIMITS) {
+        RUN(test_velocity_limits);
+    }
+    if (CTRLBUS_CONFIG_HEALTH) {
+        RUN(test_health_registry);
+    }
+    if (CTRLBUS_CONFIG_HEALTH) {
+        RUN(test_health_without_storage_holds_the_watchdog_warning);
+    }
+    if (CTRLBUS_CONFIG_HEALTH) {
+        RUN(test_full_health_registry_does_not_stop_the_watchdog);
+    }
+    if (CTRLBUS_CONFIG_COMMAND_QUEUE) {
+        RUN(test_external_command_queue);
+    }
+    if (CTRLBUS_CONFIG_COMMAND_QUEUE) {
+        RUN(test_command_queue_without_storage_holds_one);
+    }
     RUN(test_reboot_answers_first_then_resets);
+    RUN(test_compiled_out_features_answer_and_fail_clearly);
     RUN(test_ring_overflow_drops_and_counts);
     RUN(test_interrupt_feeding_inside_the_poll_loses_nothing);
     RUN(test_thread_feeding_while_polling_loses_nothing);

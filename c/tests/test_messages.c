@@ -60,6 +60,62 @@ static void roundtrip_request(const ctrlbus_request_t *request)
     harness_context(NULL);
 }
 
+/* Writes an OK answer through its layout's own writer (ctrlbus_<name>_answer_write, what the
+ * base stack uses) into out; returns what the writer returned. *written gets the bytes that
+ * reached the buffer. */
+static int32_t layout_write(const ctrlbus_answer_t *a, uint8_t *out, size_t size,
+                            ctrlbus_frame_type_t type, size_t *written)
+{
+    ctrlbus_sink_t sink;
+    ctrlbus_buffer_t buffer;
+    ctrlbus_sink_init_buffer(&sink, &buffer, out, size);
+    int32_t result;
+    switch (a->to) {
+    case CTRLBUS_REQ_CONNECT_BASE:
+        result = ctrlbus_connect_base_answer_write(&sink, &a->as.connect_base, type);
+        break;
+    case CTRLBUS_REQ_GET_BASE_CONF:
+        result = ctrlbus_get_base_conf_answer_write(&sink, &a->as.get_base_conf, type);
+        break;
+    case CTRLBUS_REQ_GET_BASE_CONF_ADV:
+        result = ctrlbus_get_base_conf_adv_answer_write(&sink, &a->as.get_base_conf_adv, type);
+        break;
+    case CTRLBUS_REQ_GET_BASE_STATUS:
+        result = ctrlbus_get_base_status_answer_write(&sink, &a->as.get_base_status, type);
+        break;
+    case CTRLBUS_REQ_GET_BASE_MOTOR_DATA:
+        result = ctrlbus_get_base_motor_data_answer_write(&sink, &a->as.get_base_motor_data, type);
+        break;
+    case CTRLBUS_REQ_GET_BASE_SENSOR_DATA:
+        result =
+            ctrlbus_get_base_sensor_data_answer_write(&sink, &a->as.get_base_sensor_data, type);
+        break;
+    case CTRLBUS_REQ_GET_BASE_BUMPER_DATA:
+        result =
+            ctrlbus_get_base_bumper_data_answer_write(&sink, &a->as.get_base_bumper_data, type);
+        break;
+    case CTRLBUS_REQ_GET_CHARGER_DATA:
+        result = ctrlbus_get_charger_data_answer_write(&sink, &a->as.get_charger_data, type);
+        break;
+    case CTRLBUS_REQ_SET_V_AND_GET_DEADRECKON:
+        result = ctrlbus_set_v_and_get_deadreckon_answer_write(
+            &sink, &a->as.set_v_and_get_deadreckon, type);
+        break;
+    case CTRLBUS_REQ_POLL_BASE_CMD:
+        result = ctrlbus_poll_base_cmd_answer_write(&sink, &a->as.poll_base_cmd, type);
+        break;
+    case CTRLBUS_REQ_HEALTH_GET_HEALTH:
+        result = ctrlbus_health_get_health_answer_write(&sink, &a->as.health_get_health, type);
+        break;
+    case CTRLBUS_REQ_HEALTH_GET_ERROR:
+        result = ctrlbus_health_get_error_answer_write(&sink, &a->as.health_get_error, type);
+        break;
+    default: result = ctrlbus_ok_answer_write(&sink, type); break; /* the empty OK answers */
+    }
+    *written = buffer.len;
+    return result;
+}
+
 static void roundtrip_answer(const ctrlbus_answer_t *answer)
 {
     static uint8_t wire[CTRLBUS_FRAME_MAX];
@@ -93,6 +149,12 @@ static void roundtrip_answer(const ctrlbus_answer_t *answer)
         CHECK(msg_fields_equal(&fields_a, &fields_b));
         CHECK_EQ(ctrlbus_answer_encode(again, sizeof again, &decoded, BOTH_TYPES[t]), len);
         CHECK_MEM(again, (size_t)len, wire, (size_t)len);
+        if (answer->kind == CTRLBUS_ANSWER_OK) {
+            /* The layout's own writer gives the same frame as the union's. */
+            size_t written = 0;
+            CHECK_EQ(layout_write(answer, again, sizeof again, BOTH_TYPES[t], &written), len);
+            CHECK_MEM(again, written, wire, (size_t)len);
+        }
     }
     harness_context(NULL);
 }
@@ -698,6 +760,33 @@ static void test_inconsistent_answers_are_refused(void)
     a = ok_to(CTRLBUS_REQ_GET_CHARGER_DATA);
     a.as.get_charger_data.probe_count = 2; /* probes missing */
     CHECK_EQ(ctrlbus_answer_encode(out, sizeof out, &a, CTRLBUS_FRAME_LONG), CTRLBUS_ERR_ARGUMENT);
+
+    /* The layouts' own writers refuse the same structs before a byte is written. */
+    size_t written = 1;
+    CHECK_EQ(layout_write(&a, out, sizeof out, CTRLBUS_FRAME_LONG, &written), CTRLBUS_ERR_ARGUMENT);
+    CHECK_EQ(written, 0);
+    a = ok_to(CTRLBUS_REQ_GET_BASE_BUMPER_DATA); /* payload_size 0 */
+    CHECK_EQ(layout_write(&a, out, sizeof out, CTRLBUS_FRAME_LONG, &written), CTRLBUS_ERR_ARGUMENT);
+    CHECK_EQ(written, 0);
+    a = ok_to(CTRLBUS_REQ_CONNECT_BASE);
+    strcpy(a.as.connect_base.model, "caf\xe9"); /* not ASCII */
+    CHECK_EQ(layout_write(&a, out, sizeof out, CTRLBUS_FRAME_LONG, &written), CTRLBUS_ERR_ARGUMENT);
+    CHECK_EQ(written, 0);
+    a = ok_to(CTRLBUS_REQ_GET_BASE_CONF);
+    a.as.get_base_conf.bumper_num = 9;
+    CHECK_EQ(layout_write(&a, out, sizeof out, CTRLBUS_FRAME_LONG, &written), CTRLBUS_ERR_ARGUMENT);
+    CHECK_EQ(written, 0);
+    a = ok_to(CTRLBUS_REQ_GET_BASE_CONF_ADV);
+    a.as.get_base_conf_adv.blob_len = 3; /* blob NULL */
+    CHECK_EQ(layout_write(&a, out, sizeof out, CTRLBUS_FRAME_LONG, &written), CTRLBUS_ERR_ARGUMENT);
+    CHECK_EQ(written, 0);
+    CHECK_EQ(ctrlbus_get_base_status_answer_write(NULL, NULL, CTRLBUS_FRAME_LONG),
+             CTRLBUS_ERR_ARGUMENT);
+    /* A standard frame cannot carry GET_BASE_CONF's 264 bytes: refused before any byte. */
+    a = ok_to(CTRLBUS_REQ_GET_BASE_CONF);
+    CHECK_EQ(layout_write(&a, out, sizeof out, CTRLBUS_FRAME_STANDARD, &written),
+             CTRLBUS_ERR_TOO_BIG);
+    CHECK_EQ(written, 0);
 
     a = ok_to(CTRLBUS_REQ_GET_AUXILIARY_ANCHOR);
     CHECK_EQ(ctrlbus_answer_encode(out, sizeof out, &a, CTRLBUS_FRAME_LONG), CTRLBUS_ERR_ARGUMENT);

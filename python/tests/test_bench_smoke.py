@@ -247,6 +247,9 @@ def test_footprint_figures(smoke: tuple[Path, dict[str, dict[str, Any]]]) -> Non
     assert sum(sizes["text"] for sizes in by_object.values()) == text
     assert {"base.c", "frame.c"} <= set(by_object)
     assert "scripts/size.sh" in "\n".join(result["tool_commands"])
+    # The per-target table: the minimal configuration is smaller, and poll's stack was measured.
+    assert 0 < f["cortex_m0plus_minimal_Os_text"] < f["cortex_m0plus_default_Os_text"]
+    assert f["cortex_m0plus_default_Os_stack"] > 0
 
 
 def test_end_to_end_figures(smoke: tuple[Path, dict[str, dict[str, Any]]]) -> None:

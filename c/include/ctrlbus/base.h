@@ -73,9 +73,10 @@
  *
  * Footprint: ctrlbus_base_t is 60 bytes on a 32-bit MCU (scripts/size.sh prints it), besides the
  * caller's rx_ring, frame_buffer and the optional health and command storage. ctrlbus_base_poll()
- * needs about 500 bytes of C stack on a Cortex-M3 plus what the handlers use (the answer struct
- * of the request being answered, up to GET_BASE_CONF's 272 bytes, lives there while it is
- * written).
+ * needs at most about 600 bytes of C stack on a Cortex-M (`make size` prints the worst case per
+ * target, from -fstack-usage along the call graph) plus what the handlers and write use; most of
+ * it is the answer struct of the request being answered, up to GET_BASE_CONF's 272 bytes, which
+ * lives there while it is written. Features can be compiled out (ctrlbus/ctrlbus_config.h).
  *
  * Behaviour: what the stack does by itself (docs/protocol.md has the wire rules it follows):
  *  1. Order. ctrlbus_base_poll() runs the motor watchdog (6), then takes the bytes that were in
@@ -329,7 +330,10 @@ typedef struct {
  * ctrlbus_base_feed() (enable the UART interrupt afterwards).
  * Returns CTRLBUS_OK, or CTRLBUS_ERR_ARGUMENT for a NULL base or config, a missing write callback,
  * rx_ring or frame_buffer, an rx_ring_size below 2, a frame_buffer_size below 5, a
- * binary_config_size above 65534, or the sdk2020 profile with standard_answers.
+ * binary_config_size above 65534, or the sdk2020 profile with standard_answers;
+ * CTRLBUS_ERR_UNSUPPORTED for a config that asks for a feature this build compiled out
+ * (ctrlbus/ctrlbus_config.h): health_entries, command_queue, a velocity limit, the sdk2020
+ * profile or a binary_config.
  * Not ISR-safe. Cost: O(1). */
 int32_t ctrlbus_base_init(ctrlbus_base_t *base, const ctrlbus_base_config_t *config,
                           uint32_t now_ms);
@@ -368,13 +372,15 @@ void ctrlbus_base_reset_line(ctrlbus_base_t *base);
  * pointer (a string constant is right). Entries keep registration order (GET_ERROR's index).
  * Returns 1 when added, 0 when the code was registered already (nothing changes then),
  * CTRLBUS_ERR_ARGUMENT for a NULL base or a bad message, CTRLBUS_ERR_TOO_BIG when the registry is
- * full (or has no storage and code is not the watchdog's). Not ISR-safe (main loop or handlers).
+ * full (or has no storage and code is not the watchdog's), CTRLBUS_ERR_UNSUPPORTED when the
+ * registry is compiled out (CTRLBUS_CONFIG_HEALTH 0). Not ISR-safe (main loop or handlers).
  * Cost: O(health_capacity) plus O(message length). */
 int32_t ctrlbus_base_health_add(ctrlbus_base_t *base, uint32_t code, const char *message);
 
 /* Removes the health error with this code, as the Core's HEALTH_CLR_ERROR does. A condition that
  * still holds may simply be registered again. Returns 1 when removed, 0 when it was not there,
- * CTRLBUS_ERR_ARGUMENT for a NULL base. Not ISR-safe. Cost: O(health_capacity). */
+ * CTRLBUS_ERR_ARGUMENT for a NULL base, CTRLBUS_ERR_UNSUPPORTED without the registry
+ * (CTRLBUS_CONFIG_HEALTH 0). Not ISR-safe. Cost: O(health_capacity). */
 int32_t ctrlbus_base_health_clear(ctrlbus_base_t *base, uint32_t code);
 
 /* How many health errors are registered (GET_HEALTH's error_count); 0 for a NULL base.
@@ -386,7 +392,8 @@ uint8_t ctrlbus_base_health_count(const ctrlbus_base_t *base);
  * whether one is pending. code must be one of the protocol's external commands (0x51-0x53,
  * 0x80-0x82, 0x90, 0xA0-0xA4, 0xAF, 0xB0): the Core only supports those.
  * Returns CTRLBUS_OK, CTRLBUS_ERR_ARGUMENT for an unknown code or a NULL base, CTRLBUS_ERR_TOO_BIG
- * when the queue is full. Not ISR-safe (main loop or handlers). Cost: O(1). */
+ * when the queue is full, CTRLBUS_ERR_UNSUPPORTED without external commands
+ * (CTRLBUS_CONFIG_COMMAND_QUEUE 0). Not ISR-safe (main loop or handlers). Cost: O(1). */
 int32_t ctrlbus_base_queue_command(ctrlbus_base_t *base, uint8_t code);
 
 /* Drops every queued external command (and releases nCMD). Not ISR-safe. Cost: O(1). */

@@ -6,6 +6,9 @@
  *
  *   ctrlbus/frame.h     frames on the wire: the streaming encoder ("sink") and the stream decoder
  *   ctrlbus/messages.h  typed requests and answers, serialised field by field through a sink
+ *   ctrlbus/base.h      the base stack: a robot base's whole side of the bus
+ *
+ * Build-time feature switches (all on by default) are in ctrlbus/ctrlbus_config.h.
  *
  * Conventions of the whole library (they are not repeated for every function):
  *
@@ -22,6 +25,8 @@
 #define CTRLBUS_CTRLBUS_H
 
 #include <stdint.h>
+
+#include "ctrlbus/ctrlbus_config.h"
 
 #ifdef __cplusplus
 extern "C" {

@@ -11,8 +11,13 @@
  * - tagged unions for dispatch: ctrlbus_request_decode() turns a received frame into a
  *   ctrlbus_request_t (what a base switches on); ctrlbus_answer_decode() reads an answer knowing
  *   the request it answers; ctrlbus_request_write() / ctrlbus_answer_write() write whole frames;
- * - one put/decode pair per answer layout (ctrlbus_<name>_answer_put/_decode), for a base that
- *   answers one request without building the (large) answer union.
+ * - one codec per answer layout (ctrlbus_<name>_answer_write/_put/_decode), for a base that
+ *   answers one request without building the (large) answer union: the base stack writes each
+ *   answer with its layout's _write.
+ *
+ * Two halves: a base decodes requests and encodes answers (src/messages.c); a master encodes
+ * requests and decodes answers (src/messages_master.c, compiled and declared only with
+ * CTRLBUS_CONFIG_MASTER_CODECS, on by default: see ctrlbus/ctrlbus_config.h).
  *
  * Values: decoding refuses what the protocol does not define (a wrong length, text that is not
  * ASCII, a sensor_num over 8, an unknown argument value), and encoding refuses the same values
@@ -263,14 +268,17 @@ int32_t ctrlbus_request_decode(ctrlbus_request_t *out, uint8_t cmd, const uint8_
  * other failure. ISR-safe. Cost: O(1). */
 uint16_t ctrlbus_request_error_code(const ctrlbus_request_t *request, int32_t error);
 
+#if CTRLBUS_CONFIG_MASTER_CODECS /* the master side: see ctrlbus/ctrlbus_config.h */
 /* The CMD byte a request travels in (0x00, 0x01, 0xF9, or 0xF8 for the control-bus requests), or
  * -1 for CTRLBUS_REQ_NONE / CTRLBUS_REQ_HEALTH_UNKNOWN / an out-of-range kind. ISR-safe. O(1). */
 int32_t ctrlbus_request_cmd(ctrlbus_req_kind_t kind);
+#endif
 
 /* The contract's name of a request kind ("CONNECT_BASE", "HEALTH_GET_ERROR", "SYNC", ...), or
  * NULL for CTRLBUS_REQ_NONE, CTRLBUS_REQ_HEALTH_UNKNOWN and out-of-range kinds. ISR-safe. O(1). */
 const char *ctrlbus_request_name(ctrlbus_req_kind_t kind);
 
+#if CTRLBUS_CONFIG_MASTER_CODECS /* the master side: request encoders */
 /* Payload size of a request, or CTRLBUS_ERR_ARGUMENT for a kind that cannot be sent, an argument
  * value that decoding would refuse as unsupported, or a NULL byte field with a non-zero length.
  * ISR-safe. Cost: O(1). */
@@ -288,6 +296,7 @@ int32_t ctrlbus_request_write(ctrlbus_sink_t *sink, const ctrlbus_request_t *req
  * ISR-safe. Cost: O(payload size). */
 int32_t ctrlbus_request_encode(uint8_t *out, size_t out_size, const ctrlbus_request_t *request,
                                ctrlbus_frame_type_t type);
+#endif
 
 /* ---- answers -------------------------------------------------------------------------------- */
 
@@ -386,92 +395,146 @@ typedef struct {
     uint16_t error_code; /* CTRLBUS_WIRE_ERR_* */
 } ctrlbus_error_answer_t;
 
-/* Per-layout codecs.
+/* Per-layout codecs: what a base uses to answer one request, without the (large) answer union.
  * - _size() (for layouts whose size or values can vary) returns the payload size, or
- *   CTRLBUS_ERR_ARGUMENT for a struct that cannot be encoded. Call it before ctrlbus_sink_begin():
- *   then a bad struct is refused before any byte goes out.
- * - put writes the OK payload's fields into a frame begun with that size (or the constant above).
- *   It re-checks the struct; a bad one makes ctrlbus_sink_end() return CTRLBUS_ERR_ARGUMENT, but
- *   on a streaming sink the header is already out then.
- * - decode reads payload[0..len) into *out (unspecified on failure) and returns CTRLBUS_OK,
- *   CTRLBUS_ERR_FORMAT for a length or value the layout does not allow, or CTRLBUS_ERR_ARGUMENT
- *   for NULL pointers.
+ *   CTRLBUS_ERR_ARGUMENT for a struct that cannot be encoded.
+ * - _write() writes the whole OK answer frame (CMD 0x02) of the struct through sink: it checks
+ *   the struct and computes the size once, then streams the header, each field and the checksum.
+ *   Returns the frame's size; CTRLBUS_ERR_ARGUMENT for a struct that cannot be encoded, found
+ *   before any byte is written; CTRLBUS_ERR_TOO_BIG for a payload over the frame type's limit (a
+ *   STANDARD frame), also before any byte; or the write callback's error. This is what the base
+ *   stack uses (ISR-safe if the sink's callback is; cost O(size), a few write calls per field).
+ * - _put() writes the OK payload's fields into a frame the caller began with that size (or the
+ *   constant above). It checks the struct too; a bad one makes ctrlbus_sink_end() return
+ *   CTRLBUS_ERR_ARGUMENT, but on a streaming sink the header is already out then.
+ * - _decode() (master side, CTRLBUS_CONFIG_MASTER_CODECS) reads payload[0..len) into *out
+ *   (unspecified on failure) and returns CTRLBUS_OK, CTRLBUS_ERR_FORMAT for a length or value the
+ *   layout does not allow, or CTRLBUS_ERR_ARGUMENT for NULL pointers.
  * ISR-safe. Cost: O(size). */
-void ctrlbus_connect_base_answer_put(ctrlbus_sink_t *sink, const ctrlbus_connect_base_answer_t *a);
-/* size/put fail (ARGUMENT) for text that is not ASCII. */
+
+/* size/put/write fail (ARGUMENT) for text that is not ASCII. */
 int32_t ctrlbus_connect_base_answer_size(const ctrlbus_connect_base_answer_t *a); /* 28 or 39 */
-int32_t ctrlbus_connect_base_answer_decode(ctrlbus_connect_base_answer_t *out,
-                                           const uint8_t *payload, size_t len);
+int32_t ctrlbus_connect_base_answer_write(ctrlbus_sink_t *sink,
+                                          const ctrlbus_connect_base_answer_t *a,
+                                          ctrlbus_frame_type_t type);
+void ctrlbus_connect_base_answer_put(ctrlbus_sink_t *sink, const ctrlbus_connect_base_answer_t *a);
 
-void ctrlbus_get_base_conf_answer_put(ctrlbus_sink_t *sink, const ctrlbus_get_base_conf_answer_t *a);
+/* size/put/write fail (ARGUMENT) for a sensor_num or bumper_num over 8. */
 int32_t ctrlbus_get_base_conf_answer_size(const ctrlbus_get_base_conf_answer_t *a); /* 264 */
-int32_t ctrlbus_get_base_conf_answer_decode(ctrlbus_get_base_conf_answer_t *out,
-                                            const uint8_t *payload, size_t len);
+int32_t ctrlbus_get_base_conf_answer_write(ctrlbus_sink_t *sink,
+                                           const ctrlbus_get_base_conf_answer_t *a,
+                                           ctrlbus_frame_type_t type);
+void ctrlbus_get_base_conf_answer_put(ctrlbus_sink_t *sink, const ctrlbus_get_base_conf_answer_t *a);
 
+/* put/write fail (ARGUMENT) for a NULL blob with a non-zero length, TOO_BIG over 65534 bytes. */
+int32_t ctrlbus_get_base_conf_adv_answer_write(ctrlbus_sink_t *sink,
+                                               const ctrlbus_get_base_conf_adv_answer_t *a,
+                                               ctrlbus_frame_type_t type);
 void ctrlbus_get_base_conf_adv_answer_put(ctrlbus_sink_t *sink,
                                           const ctrlbus_get_base_conf_adv_answer_t *a);
-int32_t ctrlbus_get_base_conf_adv_answer_decode(ctrlbus_get_base_conf_adv_answer_t *out,
-                                                const uint8_t *payload, size_t len);
 
+int32_t ctrlbus_get_base_status_answer_write(ctrlbus_sink_t *sink,
+                                             const ctrlbus_get_base_status_answer_t *a,
+                                             ctrlbus_frame_type_t type);
 void ctrlbus_get_base_status_answer_put(ctrlbus_sink_t *sink,
                                         const ctrlbus_get_base_status_answer_t *a);
-int32_t ctrlbus_get_base_status_answer_decode(ctrlbus_get_base_status_answer_t *out,
-                                              const uint8_t *payload, size_t len);
 
+int32_t ctrlbus_get_base_motor_data_answer_write(ctrlbus_sink_t *sink,
+                                                 const ctrlbus_get_base_motor_data_answer_t *a,
+                                                 ctrlbus_frame_type_t type);
 void ctrlbus_get_base_motor_data_answer_put(ctrlbus_sink_t *sink,
                                             const ctrlbus_get_base_motor_data_answer_t *a);
-int32_t ctrlbus_get_base_motor_data_answer_decode(ctrlbus_get_base_motor_data_answer_t *out,
-                                                  const uint8_t *payload, size_t len);
 
+int32_t ctrlbus_get_base_sensor_data_answer_write(ctrlbus_sink_t *sink,
+                                                  const ctrlbus_get_base_sensor_data_answer_t *a,
+                                                  ctrlbus_frame_type_t type);
 void ctrlbus_get_base_sensor_data_answer_put(ctrlbus_sink_t *sink,
                                              const ctrlbus_get_base_sensor_data_answer_t *a);
-int32_t ctrlbus_get_base_sensor_data_answer_decode(ctrlbus_get_base_sensor_data_answer_t *out,
-                                                   const uint8_t *payload, size_t len);
 
-/* put fails (ARGUMENT) for a payload_size outside 1..4 or bitmap bits that do not fit in it. */
+/* size/put/write fail (ARGUMENT) for a payload_size outside 1..4 or bitmap bits that do not fit
+ * in it. */
+int32_t ctrlbus_get_base_bumper_data_answer_size(const ctrlbus_get_base_bumper_data_answer_t *a);
+int32_t ctrlbus_get_base_bumper_data_answer_write(ctrlbus_sink_t *sink,
+                                                  const ctrlbus_get_base_bumper_data_answer_t *a,
+                                                  ctrlbus_frame_type_t type);
 void ctrlbus_get_base_bumper_data_answer_put(ctrlbus_sink_t *sink,
                                              const ctrlbus_get_base_bumper_data_answer_t *a);
-int32_t ctrlbus_get_base_bumper_data_answer_size(const ctrlbus_get_base_bumper_data_answer_t *a);
-int32_t ctrlbus_get_base_bumper_data_answer_decode(ctrlbus_get_base_bumper_data_answer_t *out,
-                                                   const uint8_t *payload, size_t len);
 
-/* decode: FORMAT unless len == 2 + probe_count. */
+/* size/put/write fail (ARGUMENT) for NULL probes with a non-zero probe_count. */
+int32_t ctrlbus_get_charger_data_answer_size(const ctrlbus_get_charger_data_answer_t *a);
+int32_t ctrlbus_get_charger_data_answer_write(ctrlbus_sink_t *sink,
+                                              const ctrlbus_get_charger_data_answer_t *a,
+                                              ctrlbus_frame_type_t type);
 void ctrlbus_get_charger_data_answer_put(ctrlbus_sink_t *sink,
                                          const ctrlbus_get_charger_data_answer_t *a);
-int32_t ctrlbus_get_charger_data_answer_size(const ctrlbus_get_charger_data_answer_t *a);
-int32_t ctrlbus_get_charger_data_answer_decode(ctrlbus_get_charger_data_answer_t *out,
-                                               const uint8_t *payload, size_t len);
 
-void ctrlbus_set_v_and_get_deadreckon_answer_put(
-    ctrlbus_sink_t *sink, const ctrlbus_set_v_and_get_deadreckon_answer_t *a);
 int32_t ctrlbus_set_v_and_get_deadreckon_answer_size(
     const ctrlbus_set_v_and_get_deadreckon_answer_t *a); /* 13 or 17 */
-int32_t ctrlbus_set_v_and_get_deadreckon_answer_decode(
-    ctrlbus_set_v_and_get_deadreckon_answer_t *out, const uint8_t *payload, size_t len);
+int32_t ctrlbus_set_v_and_get_deadreckon_answer_write(
+    ctrlbus_sink_t *sink, const ctrlbus_set_v_and_get_deadreckon_answer_t *a,
+    ctrlbus_frame_type_t type);
+void ctrlbus_set_v_and_get_deadreckon_answer_put(
+    ctrlbus_sink_t *sink, const ctrlbus_set_v_and_get_deadreckon_answer_t *a);
 
-/* put/size fail (ARGUMENT) for a payload_size other than 0 or 2, a command with payload_size 0,
- * a pad with payload_size 0, or has_command with command 0xFF. */
-void ctrlbus_poll_base_cmd_answer_put(ctrlbus_sink_t *sink, const ctrlbus_poll_base_cmd_answer_t *a);
+/* size/put/write fail (ARGUMENT) for a payload_size other than 0 or 2, a command with
+ * payload_size 0, a pad with payload_size 0, or has_command with command 0xFF. */
 int32_t ctrlbus_poll_base_cmd_answer_size(const ctrlbus_poll_base_cmd_answer_t *a);
-int32_t ctrlbus_poll_base_cmd_answer_decode(ctrlbus_poll_base_cmd_answer_t *out,
-                                            const uint8_t *payload, size_t len);
+int32_t ctrlbus_poll_base_cmd_answer_write(ctrlbus_sink_t *sink,
+                                           const ctrlbus_poll_base_cmd_answer_t *a,
+                                           ctrlbus_frame_type_t type);
+void ctrlbus_poll_base_cmd_answer_put(ctrlbus_sink_t *sink, const ctrlbus_poll_base_cmd_answer_t *a);
 
+int32_t ctrlbus_health_get_health_answer_write(ctrlbus_sink_t *sink,
+                                               const ctrlbus_health_get_health_answer_t *a,
+                                               ctrlbus_frame_type_t type);
 void ctrlbus_health_get_health_answer_put(ctrlbus_sink_t *sink,
                                           const ctrlbus_health_get_health_answer_t *a);
-int32_t ctrlbus_health_get_health_answer_decode(ctrlbus_health_get_health_answer_t *out,
-                                                const uint8_t *payload, size_t len);
 
-/* size/put fail (ARGUMENT) for a message of 32 characters or more (no room for its NUL). */
+/* size/put/write fail (ARGUMENT) for a message of 32 characters or more (no room for its NUL). */
+int32_t ctrlbus_health_get_error_answer_size(const ctrlbus_health_get_error_answer_t *a); /* 36 */
+int32_t ctrlbus_health_get_error_answer_write(ctrlbus_sink_t *sink,
+                                              const ctrlbus_health_get_error_answer_t *a,
+                                              ctrlbus_frame_type_t type);
 void ctrlbus_health_get_error_answer_put(ctrlbus_sink_t *sink,
                                          const ctrlbus_health_get_error_answer_t *a);
-int32_t ctrlbus_health_get_error_answer_size(const ctrlbus_health_get_error_answer_t *a); /* 36 */
-int32_t ctrlbus_health_get_error_answer_decode(ctrlbus_health_get_error_answer_t *out,
-                                               const uint8_t *payload, size_t len);
+
+/* Writes an OK answer frame with an empty payload (the OK of SET_BASE_MOTOR, POLL_BASE_ANS_CMD,
+ * SEND_EVENT, HEALTH_CLR_ERROR, BASE_CMD). Returns its size (6 as a long frame) or a negative
+ * error as ctrlbus_frame_write(). ISR-safe if the sink's callback is. Cost: O(1). */
+int32_t ctrlbus_ok_answer_write(ctrlbus_sink_t *sink, ctrlbus_frame_type_t type);
 
 /* Writes a whole ERROR answer frame (CMD 0x03, u16 code). Returns its size (7 as a long frame) or
  * a negative error as ctrlbus_frame_write(). ISR-safe if the sink's callback is. Cost: O(1). */
 int32_t ctrlbus_error_answer_write(ctrlbus_sink_t *sink, uint16_t error_code,
                                    ctrlbus_frame_type_t type);
+
+#if CTRLBUS_CONFIG_MASTER_CODECS /* the master side: answer decoders */
+int32_t ctrlbus_connect_base_answer_decode(ctrlbus_connect_base_answer_t *out,
+                                           const uint8_t *payload, size_t len);
+int32_t ctrlbus_get_base_conf_answer_decode(ctrlbus_get_base_conf_answer_t *out,
+                                            const uint8_t *payload, size_t len);
+int32_t ctrlbus_get_base_conf_adv_answer_decode(ctrlbus_get_base_conf_adv_answer_t *out,
+                                                const uint8_t *payload, size_t len);
+int32_t ctrlbus_get_base_status_answer_decode(ctrlbus_get_base_status_answer_t *out,
+                                              const uint8_t *payload, size_t len);
+int32_t ctrlbus_get_base_motor_data_answer_decode(ctrlbus_get_base_motor_data_answer_t *out,
+                                                  const uint8_t *payload, size_t len);
+int32_t ctrlbus_get_base_sensor_data_answer_decode(ctrlbus_get_base_sensor_data_answer_t *out,
+                                                   const uint8_t *payload, size_t len);
+int32_t ctrlbus_get_base_bumper_data_answer_decode(ctrlbus_get_base_bumper_data_answer_t *out,
+                                                   const uint8_t *payload, size_t len);
+/* FORMAT unless len == 2 + probe_count. */
+int32_t ctrlbus_get_charger_data_answer_decode(ctrlbus_get_charger_data_answer_t *out,
+                                               const uint8_t *payload, size_t len);
+int32_t ctrlbus_set_v_and_get_deadreckon_answer_decode(
+    ctrlbus_set_v_and_get_deadreckon_answer_t *out, const uint8_t *payload, size_t len);
+int32_t ctrlbus_poll_base_cmd_answer_decode(ctrlbus_poll_base_cmd_answer_t *out,
+                                            const uint8_t *payload, size_t len);
+int32_t ctrlbus_health_get_health_answer_decode(ctrlbus_health_get_health_answer_t *out,
+                                                const uint8_t *payload, size_t len);
+int32_t ctrlbus_health_get_error_answer_decode(ctrlbus_health_get_error_answer_t *out,
+                                               const uint8_t *payload, size_t len);
+#endif
 
 /* The answer's CMD: the contract's answer names. */
 typedef enum {
@@ -506,6 +569,7 @@ typedef struct {
     } as;
 } ctrlbus_answer_t;
 
+#if CTRLBUS_CONFIG_MASTER_CODECS /* the master side: answer decoder */
 /* Reads a received answer frame (cmd, payload) to the request kind `to`. Returns CTRLBUS_OK;
  * CTRLBUS_ERR_FORMAT for a payload length (or value) the answer does not allow; CTRLBUS_ERR_UNSUPPORTED
  * for an unknown answer CMD, or an OK answer to a request that has no OK layout (SYNC, ECHO,
@@ -514,6 +578,7 @@ typedef struct {
  * must have length 0. ISR-safe. Cost: O(len). */
 int32_t ctrlbus_answer_decode(ctrlbus_answer_t *out, ctrlbus_req_kind_t to, uint8_t cmd,
                               const uint8_t *payload, size_t len);
+#endif
 
 /* The contract's name of an answer kind: "OK", "ERROR", "INVALID", "SYNC", "ECHO" (NULL when out of
  * range). ISR-safe. Cost: O(1). */

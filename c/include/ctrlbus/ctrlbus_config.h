@@ -1,0 +1,87 @@
+/* SPDX-License-Identifier: MIT */
+/* ctrlbus build-time configuration: every feature switch of the library, in one place.
+ *
+ * How to set them (littlefs / nanopb style): define CTRLBUS_CONFIG_HEADER to a header of your own,
+ * for example -DCTRLBUS_CONFIG_HEADER='"my_ctrlbus_config.h"' (CMake: -DCTRLBUS_CONFIG_HEADER=
+ * /path/to/my_ctrlbus_config.h), and define the switches you change there; or define single
+ * switches with -D. Whatever is not defined gets the default below. Every translation unit that
+ * includes a ctrlbus header must see the same values (the CMake target exports the definition).
+ *
+ * Every switch is 1 (on) by default: the default build is the full library. Turning a switch off
+ * removes code, never changes what a kept feature does on the wire. A feature that is compiled
+ * out behaves clearly:
+ *   - an optional request it served is answered ERROR 0x8000 (unsupported);
+ *   - a mandatory request it served is still answered, as by a base that has nothing to report
+ *     (see each switch);
+ *   - the API functions that only it needs return CTRLBUS_ERR_UNSUPPORTED, and
+ *     ctrlbus_base_init() refuses (CTRLBUS_ERR_UNSUPPORTED) a config that asks for it.
+ *
+ * The size effects are .text bytes of the base stack on cortex-m0plus, arm-none-eabi-gcc 12 -Os,
+ * linked with --gc-sections, each switch turned off alone from the default build (5,884 B). All
+ * off together (the minimal configuration) save 1,674 B (4,210 B left). `make size` prints both
+ * configurations for every target; docs/performance.md tables them.
+ */
+#ifndef CTRLBUS_CTRLBUS_CONFIG_H
+#define CTRLBUS_CTRLBUS_CONFIG_H
+
+#ifdef CTRLBUS_CONFIG_HEADER
+#include CTRLBUS_CONFIG_HEADER
+#endif
+
+/* The health registry (ctrlbus_base_health_add/_clear, HEALTH_MGMT with registered errors, the
+ * watchdog's health warning). Off: HEALTH_GET_HEALTH (mandatory) answers no errors,
+ * HEALTH_GET_ERROR and HEALTH_CLR_ERROR answer 0x8002 (no such error, as with an empty registry),
+ * ctrlbus_base_health_add/_clear return CTRLBUS_ERR_UNSUPPORTED, and a config with
+ * health_entries is refused. Size effect: 528 B. */
+#ifndef CTRLBUS_CONFIG_HEALTH
+#define CTRLBUS_CONFIG_HEALTH 1
+#endif
+
+/* External commands offered to the Core (ctrlbus_base_queue_command, POLL_BASE_CMD with a
+ * pending command, the nCMD line callback). Off: POLL_BASE_CMD (mandatory) always answers
+ * "nothing pending", POLL_BASE_ANS_CMD answers OK, ctrlbus_base_queue_command returns
+ * CTRLBUS_ERR_UNSUPPORTED, and a config with command_queue storage is refused.
+ * Size effect: 270 B. */
+#ifndef CTRLBUS_CONFIG_COMMAND_QUEUE
+#define CTRLBUS_CONFIG_COMMAND_QUEUE 1
+#endif
+
+/* The velocity limits (ctrlbus_base_config_t.limits, docs/protocol.md §9.2), including the
+ * differential-drive arithmetic they need. Off: commands reach the handlers unchanged, and a
+ * config with any limit set is refused. Size effect: 772 B (most of it ctrlbus/diffdrive.h's
+ * wheel-speed arithmetic and libgcc's 64-bit multiply). */
+#ifndef CTRLBUS_CONFIG_LIMITS
+#define CTRLBUS_CONFIG_LIMITS 1
+#endif
+
+/* The sdk2020 profile (CTRLBUS_PROFILE_SDK2020: CONNECT with its suffix, deadreckon with the
+ * timestamp, bumpers padded to 4 bytes, POLL_BASE_CMD's FF 00). Off: only the reference profile;
+ * a config asking for sdk2020 is refused. Size effect: 52 B. */
+#ifndef CTRLBUS_CONFIG_PROFILE_SDK2020
+#define CTRLBUS_CONFIG_PROFILE_SDK2020 1
+#endif
+
+/* GET_BASE_CONF_ADV (0x21), streamed from ctrlbus_base_config_t.binary_config. Off: the request
+ * is answered 0x8000 (the Core then asks GET_BASE_CONF), and a config with a binary_config is
+ * refused. Size effect: 28 B. */
+#ifndef CTRLBUS_CONFIG_CONF_ADV
+#define CTRLBUS_CONFIG_CONF_ADV 1
+#endif
+
+/* The master-side codecs of messages.h: request encoders (ctrlbus_request_write/_encode/
+ * _payload_size/_cmd) and answer decoders (ctrlbus_answer_decode, ctrlbus_*_answer_decode), what
+ * a Core or a test tool needs and a base never does. They live in their own file
+ * (src/messages_master.c), so a base firmware linked with --gc-sections never pays for them;
+ * off, they are neither compiled nor declared (using one is a compile error).
+ * Size effect on the base stack: 0 B (they were never linked into it); on the whole library
+ * (every object, unlinked): 1,727 B (src/messages_master.c). */
+#ifndef CTRLBUS_CONFIG_MASTER_CODECS
+#define CTRLBUS_CONFIG_MASTER_CODECS 1
+#endif
+
+/* The profile a zeroed ctrlbus_base_config_t gets (ctrlbus_base_profile_t, base.h). */
+#ifndef CTRLBUS_DEFAULT_PROFILE
+#define CTRLBUS_DEFAULT_PROFILE CTRLBUS_PROFILE_REFERENCE
+#endif
+
+#endif

@@ -1,0 +1,100 @@
+/* SPDX-License-Identifier: MIT */
+/* Private to the library: the field readers and protocol facts that both halves of the message
+ * codecs use (messages.c, what a base sends and reads; messages_master.c, what a master sends
+ * and reads), and the answer writers the base stack shares with messages.c. Not installed, not
+ * part of the API. */
+#ifndef CTRLBUS_SRC_CODEC_H
+#define CTRLBUS_SRC_CODEC_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "ctrlbus/messages.h"
+
+/* ---- reading fields: callers check the payload length first ---------------------------------- */
+
+static inline uint8_t codec_take_u8(const uint8_t **p)
+{
+    uint8_t value = (*p)[0];
+    *p += 1;
+    return value;
+}
+
+static inline uint16_t codec_take_u16(const uint8_t **p)
+{
+    uint16_t value = (uint16_t)((uint16_t)(*p)[0] | (uint16_t)((uint16_t)(*p)[1] << 8));
+    *p += 2;
+    return value;
+}
+
+static inline uint32_t codec_take_u32(const uint8_t **p)
+{
+    const uint8_t *b = *p;
+    uint32_t value = (uint32_t)b[0] | ((uint32_t)b[1] << 8) | ((uint32_t)b[2] << 16) |
+                     ((uint32_t)b[3] << 24);
+    *p += 4;
+    return value;
+}
+
+/* Two's complement without relying on implementation-defined conversions. */
+static inline int32_t codec_take_s32(const uint8_t **p)
+{
+    uint32_t value = codec_take_u32(p);
+    if (value <= 0x7FFFFFFFu) {
+        return (int32_t)value;
+    }
+    return (int32_t)(value - 0x80000000u) - INT32_MAX - 1;
+}
+
+/* ---- argument values the protocol defines (others: well-formed but unsupported, 0x8000) ---- */
+
+static inline bool codec_base_cmd_known(uint8_t subcommand)
+{
+    return subcommand == CTRLBUS_BASE_CMD_ENTER_DFU || subcommand == CTRLBUS_BASE_CMD_REBOOT;
+}
+
+static inline bool codec_connect_version_known(uint8_t version)
+{
+    return version == CTRLBUS_PROTOCOL_VERSION;
+}
+
+static inline bool codec_charger_type_known(uint8_t data_type)
+{
+    return data_type == CTRLBUS_CHARGER_DATA_BEACONS;
+}
+
+/* Requests whose OK answer has an empty payload. */
+static inline bool codec_has_empty_ok(ctrlbus_req_kind_t kind)
+{
+    return kind == CTRLBUS_REQ_SET_BASE_MOTOR || kind == CTRLBUS_REQ_POLL_BASE_ANS_CMD ||
+           kind == CTRLBUS_REQ_SEND_EVENT || kind == CTRLBUS_REQ_HEALTH_CLR_ERROR ||
+           kind == CTRLBUS_REQ_BASE_CMD;
+}
+
+/* ---- writing answers: what messages.c shares with the base stack --------------------------- */
+
+/* Writes the fields of one answer layout; the struct has been checked (its _size). */
+typedef void (*ctrlbus_codec_put_fn)(ctrlbus_sink_t *sink, const void *answer);
+
+/* An OK answer frame of `size` payload bytes (a negative size is a check's error, returned
+ * before anything is written), its fields through put (NULL: an empty payload), its checksum.
+ * Returns the frame's size or a negative error. */
+int32_t ctrlbus_codec_write_ok(ctrlbus_sink_t *sink, int32_t size, ctrlbus_codec_put_fn put,
+                               const void *answer, ctrlbus_frame_type_t type);
+
+/* Each layout's fields, in wire order (answer points at that layout's struct). */
+void ctrlbus_codec_connect_base_fields(ctrlbus_sink_t *sink, const void *answer);
+void ctrlbus_codec_get_base_conf_fields(ctrlbus_sink_t *sink, const void *answer);
+void ctrlbus_codec_get_base_conf_adv_fields(ctrlbus_sink_t *sink, const void *answer);
+void ctrlbus_codec_get_base_status_fields(ctrlbus_sink_t *sink, const void *answer);
+void ctrlbus_codec_get_base_motor_data_fields(ctrlbus_sink_t *sink, const void *answer);
+void ctrlbus_codec_get_base_sensor_data_fields(ctrlbus_sink_t *sink, const void *answer);
+void ctrlbus_codec_get_base_bumper_data_fields(ctrlbus_sink_t *sink, const void *answer);
+void ctrlbus_codec_get_charger_data_fields(ctrlbus_sink_t *sink, const void *answer);
+void ctrlbus_codec_set_v_and_get_deadreckon_fields(ctrlbus_sink_t *sink, const void *answer);
+void ctrlbus_codec_poll_base_cmd_fields(ctrlbus_sink_t *sink, const void *answer);
+void ctrlbus_codec_health_get_health_fields(ctrlbus_sink_t *sink, const void *answer);
+void ctrlbus_codec_health_get_error_fields(ctrlbus_sink_t *sink, const void *answer);
+
+#endif
