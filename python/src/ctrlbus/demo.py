@@ -214,7 +214,7 @@ class SimulatorAttached:
 def _start_core(base: RunningBase, cleanup: contextlib.ExitStack) -> DashboardSource:
     """The Core emulator on the base's pty, in real time; the source the dashboard shows."""
     from ctrlbus.core import CoreRunner, CoreSession
-    from ctrlbus.link import open_link
+    from ctrlbus.ports import open_link
 
     session = CoreSession(port=base.port)
     runner = CoreRunner(session, open_link(base.port), reopen=lambda: open_link(base.port))

@@ -46,6 +46,20 @@ class UsageError(CtrlbusError):
     """Bad command-line or API arguments; the CLI prints it on one line and exits 2."""
 
 
+class PortOpenError(LinkError):
+    """A port could not be opened (absent, busy, refused); `url` names it, `reason` says why."""
+
+    def __init__(self, url: str, reason: str, *, message: str | None = None) -> None:
+        shown = url if url.isprintable() else repr(url)
+        super().__init__(message or f"cannot open {shown}: {reason}")
+        self.url = url
+        self.reason = reason
+
+
+class PortURLError(PortOpenError, UsageError):
+    """A port URL that is wrong in itself: unknown scheme, bad option, bad fault spec."""
+
+
 class BinaryConfigError(CtrlbusError, ValueError):
     """A binary configuration blob (0x21) or its JSON form that cannot be decoded or encoded.
 

@@ -13,7 +13,7 @@ the same spec, seed, chunks and times always give the same faults.
 Three ways to use it:
 
 - `FaultyLink(inner, spec, seed)`: any `Link` with faults applied to what is written (`tx`) and
-  to what is read (`rx`), in real time; `open_link("fault:SPEC|URL")` builds one.
+  to what is read (`rx`), in real time; `ctrlbus.ports.open_link("fault:SPEC|URL")` builds one.
 - `FaultFilter(model)`: the model as a `ctrlbus.vtime` byte filter (bytes in, bytes due out).
 - `FaultModel` itself, for anything that moves bytes (the spy, a test).
 
@@ -34,7 +34,7 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from ctrlbus.errors import UsageError
-from ctrlbus.link import DEFAULT_BAUD, Link
+from ctrlbus.link import Link
 
 __all__ = [
     "FAULT_URL_PREFIX",
@@ -48,7 +48,6 @@ __all__ = [
     "FaultSpec",
     "FaultyLink",
     "fault_models",
-    "open_faulty_link",
     "split_fault_url",
 ]
 
@@ -805,11 +804,3 @@ def split_fault_url(url: str) -> tuple[FaultSpec, str]:
             f"'fault:ber=1e-4|socket://127.0.0.1:5555'; got {url!r}"
         )
     return FaultSpec.parse(spec_text), inner.strip()
-
-
-def open_faulty_link(url: str, baud: int = DEFAULT_BAUD) -> FaultyLink:
-    """Open `fault:SPEC|URL`: the port URL (which may itself be a fault URL) behind the faults."""
-    from ctrlbus.link import open_link  # the link layer calls us for fault: URLs
-
-    spec, inner_url = split_fault_url(url)
-    return FaultyLink(open_link(inner_url, baud), spec)

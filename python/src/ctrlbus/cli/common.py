@@ -16,7 +16,8 @@ from types import FrameType
 from typing import TextIO
 
 from ctrlbus.errors import UsageError
-from ctrlbus.link import DEFAULT_BAUD, Link, PtyLink, TcpServerLink, open_link, parse_host_port, serve_link
+from ctrlbus.link import DEFAULT_BAUD, Link, PtyLink, TcpServerLink, parse_host_port
+from ctrlbus.ports import open_link
 
 __all__ = [
     "DEFAULT_BAUD",
@@ -206,14 +207,8 @@ ENDPOINT_HELP = (
 
 def open_endpoint(spec: str, baud: int = DEFAULT_BAUD) -> Link:
     """Open one end of a link the way the tools that sit on a link (spy, capture, replay) take it:
-    'pty', 'listen:HOST:PORT' or a pyserial URL. UsageError / LinkError with one line otherwise."""
-    if spec == "pty":
-        return serve_link(pty=True)
-    if spec.startswith("listen:"):
-        return serve_link(listen=spec[len("listen:") :])
-    if not spec:
-        raise UsageError("empty port: give a URL, 'pty' or 'listen:HOST:PORT'")
-    return open_link(spec, baud)
+    'pty', 'listen:HOST:PORT' or a pyserial URL. PortOpenError / PortURLError naming it otherwise."""
+    return open_link(spec, baud, serving=True)
 
 
 def endpoint_address(link: Link) -> str:

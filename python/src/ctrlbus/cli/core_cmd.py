@@ -34,7 +34,8 @@ from ctrlbus.cli.common import (
 from ctrlbus.core import CoreConfig, CoreRunner, CoreSession, PollRates, byte_time_for_baud
 from ctrlbus.core.status import SCREEN_HOME_CLEAR, json_status, render_screen, status_line
 from ctrlbus.errors import ProtocolTimeout, UsageError
-from ctrlbus.link import Link, open_link
+from ctrlbus.link import Link
+from ctrlbus.ports import open_link
 
 if TYPE_CHECKING:
     from ctrlbus.web.server import DashboardServer

@@ -30,7 +30,8 @@ from ctrlbus.base import (
     parse_profile,
 )
 from ctrlbus.errors import BinaryConfigError, UsageError
-from ctrlbus.link import DEFAULT_BAUD, Link, PtyLink, TcpServerLink, serve_link
+from ctrlbus.link import DEFAULT_BAUD, Link, PtyLink, TcpServerLink
+from ctrlbus.ports import serve_link
 from ctrlbus.sim.base import SimulatedBase
 from ctrlbus.sim.description import load_base_description
 from ctrlbus.sim.room import load_room
