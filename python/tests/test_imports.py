@@ -41,7 +41,9 @@ def imports_of(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
                 base = f"{anchor}.{node.module}" if node.module else anchor
             else:
                 base = node.module or ""
-            targets = [f"{base}.{alias.name}" if f"{base}.{alias.name}" in modules else base for alias in node.names]
+            targets = [
+                f"{base}.{alias.name}" if f"{base}.{alias.name}" in modules else base for alias in node.names
+            ]
         else:
             continue
         found.update(target for target in targets if target in modules and target != name)
