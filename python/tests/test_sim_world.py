@@ -41,13 +41,13 @@ ACCEL = 1000.0
 
 
 def default_base_dict() -> dict[str, Any]:
-    text = resources.files("ctrlbus").joinpath("data", "sim-base.json").read_text(encoding="utf-8")
+    text = (resources.files("ctrlbus") / "data" / "sim-base.json").read_text(encoding="utf-8")
     data: dict[str, Any] = json.loads(text)
     return data
 
 
 def default_room_dict() -> dict[str, Any]:
-    text = resources.files("ctrlbus").joinpath("data", "sim-room.json").read_text(encoding="utf-8")
+    text = (resources.files("ctrlbus") / "data" / "sim-room.json").read_text(encoding="utf-8")
     data: dict[str, Any] = json.loads(text)
     return data
 

@@ -40,6 +40,7 @@ from typing import Any
 
 from ctrlbus import binconf
 from ctrlbus.capture import Direction
+from ctrlbus.compat import StrEnum
 from ctrlbus.errors import BinaryConfigError, MessageError, UnsupportedMessageError, UsageError
 from ctrlbus.frame import MAX_FRAME, DecoderEvent, DecoderStats, EventKind, Frame, StreamDecoder
 from ctrlbus.messages import (
@@ -120,7 +121,7 @@ def sender_name(direction: Direction | None) -> str | None:
     return "core" if direction is Direction.CORE_TO_BASE else "base"
 
 
-class Role(enum.StrEnum):
+class Role(StrEnum):
     REQUEST = "request"
     ANSWER = "answer"
 
@@ -207,7 +208,7 @@ class FrameNote:
         }
 
 
-class RejectReason(enum.StrEnum):
+class RejectReason(StrEnum):
     """Why bytes were not a frame: the decoder's events, plus two of our own."""
 
     GARBAGE = "garbage"

@@ -18,7 +18,6 @@ real time.
 
 from __future__ import annotations
 
-import enum
 import logging
 import math
 import threading
@@ -28,8 +27,9 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from dataclasses import fields as dataclass_fields
 from types import TracebackType
-from typing import Any, Self, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
+from ctrlbus.compat import StrEnum
 from ctrlbus.errors import (
     CtrlbusError,
     MessageFormatError,
@@ -81,6 +81,9 @@ from ctrlbus.messages import (
     answer_frame,
     decode_request,
 )
+
+if TYPE_CHECKING:
+    from typing_extensions import Self  # typing.Self from Python 3.11; annotations only
 
 __all__ = [
     "COMPONENT_MOTION",
@@ -158,7 +161,7 @@ WATCHDOG_TRIPPED_CODE = health_code(HEALTH_WARNING, COMPONENT_MOTION, TYPE_WATCH
 WATCHDOG_TRIPPED_MESSAGE = "motor watchdog tripped"
 
 
-class Profile(enum.StrEnum):
+class Profile(StrEnum):
     """Which answer variants a base sends where the sources know two (reference §4-5).
 
     reference: the 2018/v4 reference firmware (CONNECT 28 bytes, deadreckon 13 bytes, POLL with

@@ -260,7 +260,7 @@ class ChildProcess:
                 stderr=subprocess.PIPE,
                 text=True,
                 errors="replace",
-                process_group=0,  # Ctrl-C reaches only us; we stop the child in order
+                start_new_session=True,  # Ctrl-C reaches only us; we stop the child in order
             )
         except OSError as exc:
             raise LinkError(f"cannot start {self.name}: {exc.strerror or exc}") from None

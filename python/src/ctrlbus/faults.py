@@ -22,7 +22,6 @@ docs/reliability.md is the manual: the spec grammar, what each fault does, and t
 
 from __future__ import annotations
 
-import enum
 import math
 import random
 import re
@@ -33,6 +32,7 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+from ctrlbus.compat import StrEnum
 from ctrlbus.errors import UsageError
 from ctrlbus.link import Link
 
@@ -58,7 +58,7 @@ MAX_RUN_BYTES = 1 << 20  # largest burst, drop run or split piece a spec may ask
 _FLAGS = (0x10, 0x50)  # frame flags a garbage burst imitates
 
 
-class Direction(enum.StrEnum):
+class Direction(StrEnum):
     """Which way bytes go, seen from whoever holds the link: `tx` is written, `rx` is read.
 
     For the Core emulator (and in `ctrlbus.vtime`, where the Core holds the line) tx is

@@ -35,10 +35,13 @@ import typing
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from dataclasses import fields as dataclass_fields
-from typing import Any, ClassVar, Self
+from typing import TYPE_CHECKING, Any, ClassVar
 
 from ctrlbus.errors import MessageFormatError, UnsupportedMessageError, UnsupportedSubcommandError
 from ctrlbus.frame import encode as encode_frame
+
+if TYPE_CHECKING:
+    from typing_extensions import Self  # typing.Self from Python 3.11; annotations only
 
 # --- codes -------------------------------------------------------------------------------------
 

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ctrlbus import binconf
+from ctrlbus.compat import StrEnum
 from ctrlbus.core.actions import Action, DriveDistance, TurnAngle
 from ctrlbus.core.config import CoreConfig
 from ctrlbus.core.docking import GoHome
@@ -94,7 +95,7 @@ POWER_CHARGING, POWER_DC_CONNECTED, POWER_ON_DOCK = 0x01, 0x02, 0x04
 MOTION_STALL, MOTION_TRACTION_LOST = 0x02, 0x04
 
 
-class ConnectionState(enum.StrEnum):
+class ConnectionState(StrEnum):
     CONNECTING = "connecting"  # looking for the base, before the first connection
     CONFIGURING = "configuring"  # connected, reading the configuration
     CONNECTED = "connected"  # polling

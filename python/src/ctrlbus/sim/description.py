@@ -158,7 +158,7 @@ DEFAULT_BASE_RESOURCE = "sim-base.json"
 
 def default_base_description() -> BaseDescription:
     """The packaged default robot (ctrlbus/data/sim-base.json)."""
-    text = resources.files("ctrlbus").joinpath("data", DEFAULT_BASE_RESOURCE).read_text(encoding="utf-8")
+    text = (resources.files("ctrlbus") / "data" / DEFAULT_BASE_RESOURCE).read_text(encoding="utf-8")
     source = f"<default {DEFAULT_BASE_RESOURCE}>"
     return base_description_from_dict(parse_json_text(text, source), source)
 

@@ -91,7 +91,7 @@ DEFAULT_ROOM_RESOURCE = "sim-room.json"
 
 def default_room() -> Room:
     """The packaged default room (ctrlbus/data/sim-room.json)."""
-    text = resources.files("ctrlbus").joinpath("data", DEFAULT_ROOM_RESOURCE).read_text(encoding="utf-8")
+    text = (resources.files("ctrlbus") / "data" / DEFAULT_ROOM_RESOURCE).read_text(encoding="utf-8")
     source = f"<default {DEFAULT_ROOM_RESOURCE}>"
     return room_from_dict(parse_json_text(text, source), source)
 
