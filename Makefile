@@ -2,25 +2,31 @@
 # ctrlbus: every job starts with `setup`, which installs what a fresh Debian machine lacks.
 SHELL := /bin/bash
 VENV  := .venv
+VENV310 := .venv310
 PY    := $(VENV)/bin/python
 BUILD := build
 JOBS  ?= 2
 DEMO_ARGS ?=
 
-.PHONY: all setup c-build firmware c-test c-test-asan lint py-test test demo size bench fuzz fuzz-smoke clean
+.PHONY: all setup setup-demo c-build c-build-only firmware firmware-only c-test c-test-asan lint py-test test demo size bench fuzz fuzz-smoke clean
 
 all: test
 
+# Everything the test, bench and fuzz jobs use (apt groups, dev tools, the Python 3.10 venv).
 setup:
-	@scripts/setup.sh
+	@scripts/setup.sh full
 
 # Host build of the C library, tests and examples (warnings are errors).
 c-build: setup
+	@$(MAKE) --no-print-directory c-build-only
+c-build-only:
 	@cmake -S c -B $(BUILD)/c -G Ninja -DCMAKE_BUILD_TYPE=Debug >/dev/null
 	@cmake --build $(BUILD)/c -j $(JOBS)
 
 # Cortex-M3 firmware for QEMU's mps2-an385 board (arm-none-eabi-gcc).
 firmware: setup
+	@$(MAKE) --no-print-directory firmware-only
+firmware-only:
 	@$(MAKE) --no-print-directory -C c/firmware O=$(CURDIR)/$(BUILD)/firmware
 
 c-test: c-build
@@ -38,15 +44,27 @@ lint: setup
 	@$(VENV)/bin/ruff check --config python/pyproject.toml bench && $(VENV)/bin/ruff format --config python/pyproject.toml --check bench
 	@cd bench && MYPYPATH=../python/src ../$(VENV)/bin/mypy --config-file ../python/pyproject.toml --explicit-package-bases .
 
-# Python tests run against the C builds too (host base, firmware), so build those first.
+# Python tests run against the C builds too (host base, firmware), so build those first. The whole
+# suite runs twice: on the default interpreter and on Python 3.10, the oldest supported.
 py-test: c-build firmware
 	@cd python && ../$(VENV)/bin/pytest -q
+	@echo "py-test: again on $$($(VENV310)/bin/python --version)"
+	@cd python && ../$(VENV310)/bin/pytest -q -p no:cacheprovider
 
 test: c-test c-test-asan lint py-test fuzz-smoke
 	@echo "make test: all suites passed"
 
-demo: c-build firmware
-	@$(PY) -m ctrlbus.demo $(DEMO_ARGS)
+# The default demo (the simulated base) needs only the venv; `--base c` adds the C host build and
+# `--base qemu` the firmware and QEMU, each set up and built only when asked for.
+DEMO_BASE = $(shell printf '%s\n' $(DEMO_ARGS) | sed -n '/^--base=/{s/^--base=//p;q;};/^--base$$/{n;p;q;}')
+demo:
+	@case "$(DEMO_BASE)" in \
+	  ""|sim) scripts/setup.sh demo ;; \
+	  c) scripts/setup.sh c && $(MAKE) --no-print-directory c-build-only ;; \
+	  qemu) scripts/setup.sh qemu && $(MAKE) --no-print-directory firmware-only ;; \
+	  *) scripts/setup.sh demo ;; \
+	esac
+	@$(PY) -m ctrlbus demo $(DEMO_ARGS)
 
 size: setup
 	@scripts/size.sh

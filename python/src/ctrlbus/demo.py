@@ -1,7 +1,9 @@
 # SPDX-License-Identifier: MIT
-"""`python -m ctrlbus.demo` (what `make demo` runs): a base, the Core emulator and the dashboard.
+"""`ctrlbus demo` (what `make demo` runs): a base, the Core emulator and the dashboard.
 
-    python -m ctrlbus.demo [--base sim|c|qemu] [--http HOST[:PORT]] [--token T] [--speed X]
+    ctrlbus demo [--base sim|c|qemu] [--http HOST[:PORT]] [--token T] [--speed X]
+
+(`python -m ctrlbus.demo` is the same.)
 
 - `--base sim` (default): the Python simulated base, in this process, serving a real pty; the
   dashboard also shows the simulator's ground truth (room, dock, beacons, true pose).
@@ -46,11 +48,17 @@ CHILD_START_TIMEOUT_S = 15.0
 CHILD_STOP_TIMEOUT_S = 3.0
 
 
+DESCRIPTION = "Run a base, the Core emulator talking to it over a pty, and the browser dashboard."
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="python -m ctrlbus.demo",
-        description="Run a base, the Core emulator talking to it over a pty, and the browser dashboard.",
-    )
+    parser = argparse.ArgumentParser(prog="python -m ctrlbus.demo", description=DESCRIPTION)
+    add_demo_arguments(parser)
+    return parser
+
+
+def add_demo_arguments(parser: argparse.ArgumentParser) -> None:
+    """The demo's options, for `python -m ctrlbus.demo` and `ctrlbus demo` alike."""
     parser.add_argument(
         "--base",
         choices=("sim", "c", "qemu"),
@@ -73,7 +81,6 @@ def build_parser() -> argparse.ArgumentParser:
         f"or firmware image (--base qemu, default {DEFAULT_FIRMWARE.relative_to(REPO_ROOT)})",
     )
     add_dashboard_arguments(parser)
-    return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:

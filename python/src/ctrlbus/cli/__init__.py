@@ -28,6 +28,8 @@ SUBCOMMANDS: tuple[str, ...] = (
     "capture",
     "replay",
     "config",
+    "demo",
+    "completion",
 )
 
 

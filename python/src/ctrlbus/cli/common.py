@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import math
+import os
 import re
 import signal
 import sys
@@ -273,15 +274,17 @@ def add_color_argument(parser: argparse.ArgumentParser) -> None:
         "--color",
         choices=("auto", "always", "never"),
         default="auto",
-        help="colour the output: auto (when stdout is a terminal, default), always, never",
+        help="colour the output: auto (when stdout is a terminal and $NO_COLOR is unset or empty, "
+        "default), always, never",
     )
 
 
 def use_color(choice: str, stream: TextIO | None = None) -> bool:
-    """Whether to colour: 'always', 'never', or 'auto' = the stream is a terminal."""
+    """Whether to colour: 'always', 'never', or 'auto' = the stream is a terminal and NO_COLOR
+    (no-color.org) is not set to a non-empty value."""
     if choice == "always":
         return True
-    if choice == "never":
+    if choice == "never" or os.environ.get("NO_COLOR"):
         return False
     stream = stream if stream is not None else sys.stdout
     isatty = getattr(stream, "isatty", None)
