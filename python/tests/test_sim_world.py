@@ -13,6 +13,7 @@ from typing import Any
 
 import pytest
 
+from ctrlbus.constants import POWER_CHARGING, POWER_DC_CONNECTED, POWER_ON_DOCK
 from ctrlbus.errors import CtrlbusError, SimConfigError, UsageError
 from ctrlbus.kinematics import (
     DeadreckonDelta,
@@ -27,13 +28,7 @@ from ctrlbus.kinematics import (
 from ctrlbus.sim import World, load_base_description, load_room
 from ctrlbus.sim.description import base_description_from_dict
 from ctrlbus.sim.room import room_from_dict
-from ctrlbus.sim.world import (
-    BEACON_HOLD_S,
-    BUMPER_TRAVEL_MM,
-    POWER_CHARGING,
-    POWER_DC_CONNECTED,
-    POWER_ON_DOCK,
-)
+from ctrlbus.sim.world import BEACON_HOLD_S, BUMPER_TRAVEL_MM
 
 TRACK = 236.0
 RADIUS = 170.0

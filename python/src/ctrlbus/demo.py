@@ -40,6 +40,23 @@ from ctrlbus.web.source import DashboardSource
 if TYPE_CHECKING:
     from ctrlbus.sim.base import SimulatedBase
 
+__all__ = [
+    "CHILD_START_TIMEOUT_S",
+    "CHILD_STOP_TIMEOUT_S",
+    "DEFAULT_C_BASE",
+    "DEFAULT_FIRMWARE",
+    "DESCRIPTION",
+    "PTY_PATTERN",
+    "REPO_ROOT",
+    "ChildProcess",
+    "RunningBase",
+    "SimulatorAttached",
+    "add_demo_arguments",
+    "build_parser",
+    "main",
+    "run",
+]
+
 REPO_ROOT = Path(__file__).resolve().parents[3]
 DEFAULT_C_BASE = REPO_ROOT / "build" / "c" / "examples" / "posix_base" / "posix_base"
 DEFAULT_FIRMWARE = REPO_ROOT / "build" / "firmware" / "ctrlbus-base.elf"

@@ -3,6 +3,23 @@
 
 from __future__ import annotations
 
+__all__ = [
+    "BinaryConfigError",
+    "CaptureError",
+    "CtrlbusError",
+    "FrameError",
+    "LinkError",
+    "MessageError",
+    "MessageFormatError",
+    "PortOpenError",
+    "PortURLError",
+    "ProtocolTimeout",
+    "SimConfigError",
+    "UnsupportedMessageError",
+    "UnsupportedSubcommandError",
+    "UsageError",
+]
+
 
 class CtrlbusError(Exception):
     """Base class of all ctrlbus errors."""

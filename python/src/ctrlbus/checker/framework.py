@@ -17,9 +17,9 @@ from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from typing import NoReturn, TypeVar
 
-from ctrlbus.base import Profile
 from ctrlbus.checker.probe import FLUSHING_SYNC, Evidence, Exchange, NoAnswer, Prober, describe_frame
 from ctrlbus.compat import StrEnum
+from ctrlbus.constants import Profile
 from ctrlbus.errors import LinkError, MessageError, ProtocolTimeout, UsageError
 from ctrlbus.frame import Frame
 from ctrlbus.messages import (

@@ -29,6 +29,15 @@ from ctrlbus.cli.common import (
 from ctrlbus.errors import UsageError
 from ctrlbus.link import Link
 
+__all__ = [
+    "DESCRIPTION",
+    "READ_TIMEOUT_S",
+    "ChunkSink",
+    "record",
+    "register",
+    "run",
+]
+
 DESCRIPTION = """\
 Record the bytes one port receives in a pcap capture (docs/capture-format.md), one record per
 read with its time. --direction says who sent them: core (default: the port hears the Core's

@@ -34,6 +34,14 @@ from ctrlbus.cli.common import add_baud_argument, add_port_argument, write_outpu
 from ctrlbus.errors import UsageError
 from ctrlbus.ports import open_link
 
+__all__ = [
+    "DESCRIPTION",
+    "list_checks",
+    "options_from_args",
+    "register",
+    "run",
+]
+
 DESCRIPTION = """\
 Check a base against docs/protocol.md: a numbered list of checks, each naming the rules it
 enforces, each ending PASS, WARN, FAIL or SKIP with evidence (the bytes sent and received, timed).

@@ -16,6 +16,20 @@ from ctrlbus.kinematics import Pose, normalize_angle_deg, to_world
 from ctrlbus.sim.config import ConfigReader, load_json_file, parse_json_text, unique_names
 from ctrlbus.sim.geometry import Point, Segment, polyline_segments
 
+__all__ = [
+    "DEFAULT_ROOM_RESOURCE",
+    "MAX_BEACONS",
+    "MAX_SHAPES",
+    "BeaconSpec",
+    "CliffArea",
+    "DockSpec",
+    "Room",
+    "WallShape",
+    "default_room",
+    "load_room",
+    "room_from_dict",
+]
+
 MAX_BEACONS = 8  # one bit each in a GET_CHARGER_DATA probe byte
 MAX_SHAPES = 256
 

@@ -15,6 +15,20 @@ from dataclasses import dataclass
 
 from ctrlbus.errors import UsageError
 
+__all__ = [
+    "DEFAULT_HTTP_HOST",
+    "DEFAULT_HTTP_PORT",
+    "DEFAULT_PUSH_HZ",
+    "DEFAULT_TELEOP_HOLD_S",
+    "MAX_PUSH_HZ",
+    "MIN_RECOMMENDED_TOKEN_CHARS",
+    "TOKEN_ENV",
+    "DashboardOptions",
+    "check_token",
+    "is_loopback",
+    "parse_http_address",
+]
+
 DEFAULT_HTTP_HOST = "127.0.0.1"
 DEFAULT_HTTP_PORT = 8080
 DEFAULT_PUSH_HZ = 15.0
