@@ -99,3 +99,47 @@ def test_links_do_not_know_the_fault_injector() -> None:
     graph = import_graph()
     assert "ctrlbus.faults" not in graph["ctrlbus.link"]
     assert "ctrlbus.ports" not in graph["ctrlbus.faults"]
+
+
+# docs/architecture.md, "The Python layers": top-level module or package -> layer, bottom up.
+LAYERS = {
+    "errors": 1,
+    "compat": 1,
+    "frame": 2,
+    "messages": 2,
+    "constants": 2,
+    "kinematics": 2,
+    "binconf": 2,
+    "link": 3,
+    "faults": 3,
+    "ports": 3,
+    "base": 4,
+    "checker": 5,
+    "core": 5,
+    "sim": 5,
+    "annotate": 5,
+    "capture": 5,
+    "vtime": 5,
+    "cli": 6,
+    "demo": 6,
+    "web": 6,
+    "__main__": 6,
+}
+
+
+def layer_of(module: str) -> int:
+    parts = module.split(".")
+    if len(parts) == 1:  # the package itself: its face re-exports from every layer
+        return len(LAYERS)
+    assert parts[1] in LAYERS, f"{module}: add it to LAYERS and to the picture in docs/architecture.md"
+    return LAYERS[parts[1]]
+
+
+def test_no_layer_imports_a_layer_above_it() -> None:
+    upwards = [
+        f"{module} -> {target}"
+        for module, targets in import_graph().items()
+        for target in sorted(targets)
+        if target != PACKAGE and layer_of(target) > layer_of(module)  # `from ctrlbus import __version__`
+    ]
+    assert upwards == []
