@@ -45,11 +45,13 @@ lint: setup
 	@cd bench && MYPYPATH=../python/src ../$(VENV)/bin/mypy --config-file ../python/pyproject.toml --explicit-package-bases .
 
 # Python tests run against the C builds too (host base, firmware), so build those first. The whole
-# suite runs twice: on the default interpreter and on Python 3.10, the oldest supported.
+# suite runs twice: on the default interpreter and on Python 3.10, the oldest supported
+# (PY310_PYTEST_ARGS='-m "not browser"', for instance, trims the second run).
+PY310_PYTEST_ARGS ?=
 py-test: c-build firmware
 	@cd python && ../$(VENV)/bin/pytest -q
 	@echo "py-test: again on $$($(VENV310)/bin/python --version)"
-	@cd python && ../$(VENV310)/bin/pytest -q -p no:cacheprovider
+	@cd python && ../$(VENV310)/bin/pytest -q -p no:cacheprovider $(PY310_PYTEST_ARGS)
 
 test: c-test c-test-asan lint py-test fuzz-smoke
 	@echo "make test: all suites passed"

@@ -56,10 +56,11 @@ install_venv() {
     "$py" -m venv "$venv"
   fi
   local full_stamp=$venv/.ctrlbus-full  # a full install holds everything a light one does
-  if [ "$kind" = light ] && [ -f "$full_stamp" ] && [ "$full_stamp" -nt python/pyproject.toml ]; then
+  if [ "$kind" = light ] && [ -f "$full_stamp" ] && [ "$full_stamp" -nt python/pyproject.toml ] \
+    && [ "$full_stamp" -nt scripts/setup.sh ]; then
     return 0
   fi
-  if [ ! -f "$stamp" ] || [ python/pyproject.toml -nt "$stamp" ]; then
+  if [ ! -f "$stamp" ] || [ python/pyproject.toml -nt "$stamp" ] || [ scripts/setup.sh -nt "$stamp" ]; then
     echo "setup: installing the ctrlbus Python package ($kind) into $venv"
     "$venv/bin/python" -m pip install -q --upgrade pip
     "$venv/bin/python" -m pip install -q -e "python[web]" "$@"
@@ -90,5 +91,5 @@ else
       "Python suite on 3.10 too; install one (e.g. pyenv install 3.10) or put python3.10 on PATH" >&2
     exit 1
   fi
-  install_venv .venv310 "$py310" full --group python/pyproject.toml:dev
+  install_venv .venv310 "$py310" full --group python/pyproject.toml:dev --group python/pyproject.toml:bench
 fi

@@ -157,14 +157,14 @@ def _start_base(args: argparse.Namespace, cleanup: contextlib.ExitStack) -> Runn
         return _start_sim_base(args, cleanup)
     if args.base == "c":
         program = args.base_binary or DEFAULT_C_BASE
-        _require_file(program, "the C host base", "make c-build")
+        _require_file(program, "the C host base", 'make demo DEMO_ARGS="--base c" or make c-build')
         child = ChildProcess("posix_base", [str(program), "--pty"])
     else:
         qemu = shutil.which("qemu-system-arm")
         if qemu is None:
-            raise UsageError("qemu-system-arm is not installed (scripts/setup.sh installs it)")
+            raise UsageError("qemu-system-arm is not installed (scripts/setup.sh qemu installs it)")
         firmware = args.base_binary or DEFAULT_FIRMWARE
-        _require_file(firmware, "the firmware image", "make firmware")
+        _require_file(firmware, "the firmware image", 'make demo DEMO_ARGS="--base qemu" or make firmware')
         command = [qemu, "-M", "mps2-an385", "-display", "none", "-monitor", "none"]
         command += ["-serial", "pty", "-kernel", str(firmware)]
         child = ChildProcess("qemu", command)
