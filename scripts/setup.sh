@@ -71,8 +71,7 @@ install_venv() {
 # Python 3.10, the oldest supported: on PATH, else an interpreter pyenv installed.
 find_python310() {
   local candidate
-  for candidate in "$(command -v python3.10 || true)" "${PYENV_ROOT:-$HOME/.pyenv}"/versions/3.10*/bin/python3.10 \
-    /root/.pyenv/versions/3.10*/bin/python3.10; do
+  for candidate in "$(command -v python3.10 || true)" "${PYENV_ROOT:-${HOME:-/root}/.pyenv}"/versions/3.10*/bin/python3.10; do
     if [ -n "$candidate" ] && [ -x "$candidate" ] && "$candidate" -c 'import sys, venv; assert sys.version_info[:2] == (3, 10)' 2>/dev/null; then
       echo "$candidate"
       return 0
