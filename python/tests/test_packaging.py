@@ -129,6 +129,12 @@ def test_the_sdist_carries_readme_and_licence(dist: Path) -> None:
     with tarfile.open(only(dist, "*.tar.gz")) as archive:
         names = {name.split("/", 1)[1] for name in archive.getnames() if "/" in name}
     assert {"LICENSE", "README.md", "pyproject.toml", "src/ctrlbus/__init__.py"} <= names
+    # what a wheel built from the sdist (pip install ctrlbus-X.tar.gz) needs besides the code
+    assert {
+        "src/ctrlbus/py.typed",
+        "src/ctrlbus/data/sim-base.json",
+        "src/ctrlbus/web/static/index.html",
+    } <= names
 
 
 def test_the_tools_target_the_oldest_supported_python() -> None:
