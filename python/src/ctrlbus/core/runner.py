@@ -25,7 +25,6 @@ __all__ = [
     "REOPEN_INTERVAL_S",
     "STOP_GRACE_S",
     "CoreRunner",
-    "log",
 ]
 
 log = logging.getLogger("ctrlbus.core")

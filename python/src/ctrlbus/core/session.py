@@ -103,7 +103,6 @@ __all__ = [
     "HealthError",
     "HealthState",
     "describe_request",
-    "log",
 ]
 
 log = logging.getLogger("ctrlbus.core")

@@ -61,7 +61,6 @@ __all__ = [
     "STATIC_DIR",
     "DashboardServer",
     "ServerCounters",
-    "log",
     "start_dashboard",
 ]
 
