@@ -106,3 +106,27 @@ def test_make_demo_sets_up_only_the_venv_and_serves_the_dashboard(tmp_path: Path
     # Only the venv was made; nothing was built.
     assert (repo / ".venv" / "bin" / "python").exists()
     assert not (repo / ".venv310").exists() and not (repo / "build").exists()
+
+
+def demo_base(demo_args: str) -> str:
+    """The base `make demo DEMO_ARGS=...` sets up for (the Makefile's DEMO_BASE)."""
+    rule = "print-demo-base: ; @echo [$(DEMO_BASE)]"
+    proc = subprocess.run(
+        ["make", "-s", "--no-print-directory", "--eval", rule, "print-demo-base", f"DEMO_ARGS={demo_args}"],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    return proc.stdout.strip().strip("[]")
+
+
+def test_make_demo_sets_up_what_the_chosen_base_needs() -> None:
+    # "" and sim: scripts/setup.sh demo (the venv); c: + the C toolchain; qemu: + QEMU and the firmware's
+    assert demo_base("") == ""
+    assert demo_base("--speed 2 --base sim") == "sim"
+    assert demo_base("--base c") == "c"
+    assert demo_base("--http 127.0.0.1:0 --base=qemu") == "qemu"
+    makefile = (REPO / "Makefile").read_text(encoding="utf-8")
+    assert '""|sim) scripts/setup.sh demo' in makefile
+    assert "c) scripts/setup.sh c &&" in makefile and "qemu) scripts/setup.sh qemu &&" in makefile
