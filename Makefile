@@ -2,26 +2,32 @@
 # ctrlbus: every job starts with `setup`, which installs what a fresh Debian machine lacks.
 SHELL := /bin/bash
 VENV  := .venv
+VENV310 := .venv310
 PY    := $(VENV)/bin/python
 BUILD := build
 JOBS  ?= 2
 DEMO_ARGS ?=
 
-.PHONY: all setup c-build firmware ports c-test c-test-config-off c-test-asan lint py-test test demo size bench fuzz fuzz-smoke clean
+.PHONY: all setup c-build c-build-only firmware firmware-only ports c-test c-test-config-off c-test-asan lint py-test test demo size bench fuzz fuzz-smoke clean
 
 all: test
 
+# Everything the test, bench and fuzz jobs use (apt groups, dev tools, the Python 3.10 venv).
 setup:
-	@scripts/setup.sh
+	@scripts/setup.sh full
 
 # Host build of the C library, tests and examples (warnings are errors). A Debug build, for our
 # tests: firmware links a Release one (docs/c-library.md).
 c-build: setup
+	@$(MAKE) --no-print-directory c-build-only
+c-build-only:
 	@cmake -S c -B $(BUILD)/c -G Ninja -DCMAKE_BUILD_TYPE=Debug >/dev/null
 	@cmake --build $(BUILD)/c -j $(JOBS)
 
 # Cortex-M3 firmware for QEMU's mps2-an385 board (arm-none-eabi-gcc).
 firmware: setup
+	@$(MAKE) --no-print-directory firmware-only
+firmware-only:
 	@$(MAKE) --no-print-directory -C c/firmware O=$(CURDIR)/$(BUILD)/firmware
 
 # The minimal base on the emulated MCUs of c/ports/ (ATmega328P, nRF51, STM32F405, FE310) and
@@ -51,9 +57,14 @@ lint: setup
 	@$(VENV)/bin/ruff check --config python/pyproject.toml bench && $(VENV)/bin/ruff format --config python/pyproject.toml --check bench
 	@cd bench && MYPYPATH=../python/src ../$(VENV)/bin/mypy --config-file ../python/pyproject.toml --explicit-package-bases .
 
-# Python tests run against the C builds too (host base, firmware), so build those first.
+# Python tests run against the C builds too (host base, firmware), so build those first. The whole
+# suite runs twice: on the default interpreter and on Python 3.10, the oldest supported
+# (PY310_PYTEST_ARGS='-m "not browser"', for instance, trims the second run).
+PY310_PYTEST_ARGS ?=
 py-test: c-build firmware ports
 	@cd python && ../$(VENV)/bin/pytest -q
+	@echo "py-test: again on $$($(VENV310)/bin/python --version)"
+	@cd python && ../$(VENV310)/bin/pytest -q -p no:cacheprovider $(PY310_PYTEST_ARGS)
 
 test: c-test c-test-config-off c-test-asan lint py-test fuzz-smoke pictures
 	@echo "make test: all suites passed"
@@ -73,8 +84,17 @@ pictures: setup
 	  cmp -s "$$out" docs/img/$$name.png || { cp "$$out" docs/img/$$name.png; echo "pictures: docs/img/$$name.png updated"; }; \
 	done
 
-demo: c-build firmware
-	@$(PY) -m ctrlbus.demo $(DEMO_ARGS)
+# The default demo (the simulated base) needs only the venv; `--base c` adds the C host build and
+# `--base qemu` the firmware and QEMU, each set up and built only when asked for.
+DEMO_BASE = $(shell printf '%s\n' $(DEMO_ARGS) | sed -n '/^--base=/{s/^--base=//p;q;};/^--base$$/{n;p;q;}')
+demo:
+	@case "$(DEMO_BASE)" in \
+	  ""|sim) scripts/setup.sh demo ;; \
+	  c) scripts/setup.sh c && $(MAKE) --no-print-directory c-build-only ;; \
+	  qemu) scripts/setup.sh qemu && $(MAKE) --no-print-directory firmware-only ;; \
+	  *) scripts/setup.sh demo ;; \
+	esac
+	@$(PY) -m ctrlbus demo $(DEMO_ARGS)
 
 size: setup
 	@scripts/size.sh

@@ -8,7 +8,7 @@ Two benchmarks share this module, and the bases they drive:
 - the Python simulated base, `ctrlbus sim --pty`.
 
 Each runs as its own process behind a pseudo-terminal, which the master opens as a serial port
-(`ctrlbus.link.open_link`, pyserial), as it would a USB adapter.
+(`ctrlbus.ports.open_link`, pyserial), as it would a USB adapter.
 
 **end_to_end** (no baud limit; a pty passes bytes as fast as the processes move them). Two
 masters, each for a few seconds, against each base in turn:
@@ -69,7 +69,7 @@ from ctrlbus.core.config import BITS_PER_BYTE, CoreConfig, PollRates  # noqa: E4
 from ctrlbus.core.runner import CoreRunner  # noqa: E402
 from ctrlbus.core.session import CoreSession  # noqa: E402
 from ctrlbus.frame import Frame, StreamDecoder  # noqa: E402
-from ctrlbus.link import Link, open_link  # noqa: E402
+from ctrlbus.link import Link  # noqa: E402
 from ctrlbus.messages import (  # noqa: E402
     Response,
     SetVAndGetDeadreckon,
@@ -77,6 +77,7 @@ from ctrlbus.messages import (  # noqa: E402
     decode_answer,
     request_frame,
 )
+from ctrlbus.ports import open_link  # noqa: E402
 from ctrlbus.sim.server import SimSettings, build_simulated_stack  # noqa: E402
 from ctrlbus.vtime import VirtualBus  # noqa: E402
 

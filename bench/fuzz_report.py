@@ -134,7 +134,7 @@ def build_result(build: Path, command: str) -> dict[str, Any]:
         "goal": GOAL,
         "status": "measured",
         "mode": "full",
-        "when": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        "when": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "command": command,
         "machine": machine_facts(),
         "git": git_revision(),

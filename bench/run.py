@@ -546,7 +546,7 @@ def run_one(bench: Benchmark, ctx: BenchContext, opts: Options) -> dict[str, Any
         "seconds": round(time.perf_counter() - started, 2),
         "machine": machine_facts(),
         "git": opts.git,
-        "when": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        "when": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
     }
 
 

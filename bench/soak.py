@@ -57,8 +57,9 @@ from ctrlbus.core.session import ConnectionState, CoreSession  # noqa: E402
 from ctrlbus.errors import MessageError  # noqa: E402
 from ctrlbus.faults import Delivery, FaultFilter, FaultSpec, FaultyLink, fault_models  # noqa: E402
 from ctrlbus.frame import Frame, StreamDecoder  # noqa: E402
-from ctrlbus.link import Link, open_link  # noqa: E402
+from ctrlbus.link import Link  # noqa: E402
 from ctrlbus.messages import SetVAndGetDeadreckonAnswer  # noqa: E402
+from ctrlbus.ports import open_link  # noqa: E402
 from ctrlbus.sim.base import SimulatedBase  # noqa: E402
 from ctrlbus.sim.world import World  # noqa: E402
 from ctrlbus.vtime import VirtualBus  # noqa: E402

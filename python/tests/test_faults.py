@@ -28,7 +28,8 @@ from ctrlbus.faults import (
     split_fault_url,
 )
 from ctrlbus.frame import StreamDecoder, encode
-from ctrlbus.link import link_pair, open_link
+from ctrlbus.link import link_pair
+from ctrlbus.ports import open_link
 
 REPO = Path(__file__).resolve().parents[2]
 FRAME = encode(0xF8, bytes((0x41,)) + bytes(12))  # a SET_V_AND_GET_DEADRECKON request

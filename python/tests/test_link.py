@@ -10,7 +10,8 @@ import time
 import pytest
 
 from ctrlbus.errors import LinkError, UsageError
-from ctrlbus.link import PtyLink, TcpServerLink, link_pair, open_link, parse_host_port, serve_link
+from ctrlbus.link import PtyLink, TcpServerLink, link_pair, parse_host_port
+from ctrlbus.ports import open_link, serve_link
 
 
 def read_exactly(read: object, count: int, limit_s: float = 5.0) -> bytes:

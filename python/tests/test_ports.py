@@ -1,141 +1,143 @@
 # SPDX-License-Identifier: MIT
-"""The minimal base on the emulated MCUs of c/ports/: each board's image runs under QEMU with its
-UART on TCP, and `ctrlbus check` passes against it.
-
-The images are built here with c/ports/Makefile (make -C c/ports), so `make test` always runs the
-current sources; QEMU runs the `minimal_base-qemu.elf` image of each board (c/ports/README.md says
-how it differs from the chip's), and on the 32-bit boards also `simbase-qemu.elf`, the simulated
-base. The Cortex-M0+ image is built and sized only: QEMU has no Cortex-M0+ board.
-"""
+"""The port scheme table (ctrlbus.ports): every URL goes to one opener, and every failure to open
+is one typed error naming the URL, which each command turns into one line and exit 2."""
 
 from __future__ import annotations
 
-import re
-import shutil
-import socket
-import subprocess
-import tempfile
-import time
 from pathlib import Path
 
 import pytest
-from base_harness import REPO, Process
-from test_dashboard_browser import free_port
-from test_firmware import connect_tcp_when_listening
-from test_minimal_base import assert_checker_passes
 
-PORTS_SOURCES = REPO / "c" / "ports"
-PORTS_BUILD = REPO / "build" / "ports"
+from ctrlbus.capture import CaptureWriter, Direction
+from ctrlbus.cli import main
+from ctrlbus.errors import LinkError, PortOpenError, PortURLError, UsageError
+from ctrlbus.faults import FaultyLink
+from ctrlbus.link import PtyLink, SerialLink, TcpServerLink
+from ctrlbus.ports import SCHEMES, PortScheme, open_link, register_scheme, scheme_for, serve_link
 
-# board: the QEMU command that runs an image (the image's path is appended)
-QEMU = {
-    "uno": ["qemu-system-avr", "-M", "uno", "-bios"],
-    "microbit": ["qemu-system-arm", "-M", "microbit", "-kernel"],
-    "netduinoplus2": ["qemu-system-arm", "-M", "netduinoplus2", "-kernel"],
-    "sifive_e": ["qemu-system-riscv32", "-M", "sifive_e", "-kernel"],
-}
-TOOLS = ("avr-gcc", "arm-none-eabi-gcc", "riscv64-unknown-elf-gcc", "qemu-system-avr", "qemu-system-arm",
-         "qemu-system-riscv32")  # fmt: skip
-# QEMU's AVR USART holds one byte and takes the next from the host only after the firmware read
-# it, one turn of QEMU's event loop per byte: the checker's 4 KB oversize frame then takes 0.1 s
-# on an idle host and up to 1 s on a loaded one, where the checker waits 1 s (5 x its 200 ms
-# request timeout) for the next answer. On the wire at 115200 baud it would take 0.36 s anyway.
-# A 400 ms request timeout gives 2 s; the latency check still passes far below it (p99 ~15 ms).
-CHECKER_ARGS = {"uno": ("--timeout-ms", "400")}
-ATMEGA328P_FLASH, ATMEGA328P_RAM = 32 * 1024, 2 * 1024
-AVR_DATA_SPACE = 0x800000  # where QEMU's AVR model maps the data memory (RAM at +0x100)
-AVR_RAM_END = 0x8FF  # ATmega328P's last RAM address
-STACK_PAINT = 0xC5  # what c/ports/uno/port.c paints the free RAM with before main()
-
-
-@pytest.fixture(scope="module")
-def port_images() -> Path:
-    """Build every port image; fails with the compiler's output if the build fails."""
-    for tool in TOOLS:
-        if shutil.which(tool) is None:
-            pytest.fail(f"{tool} is missing: scripts/setup.sh installs it")
-    build = subprocess.run(
-        ["make", "-C", str(PORTS_SOURCES), f"O={PORTS_BUILD}"], capture_output=True, text=True, timeout=600
-    )
-    if build.returncode != 0:
-        pytest.fail(f"port build failed:\n{build.stdout}\n{build.stderr}")
-    return PORTS_BUILD
-
-
-RUNS = [(board, "minimal_base") for board in sorted(QEMU)] + [
-    (board, "simbase") for board in ("microbit", "netduinoplus2", "sifive_e")
+# URLs pyserial's handlers used to reject with a bare KeyError / re.error (issue 17, finding 1),
+# a scheme nobody knows, a device that is not there, and a port nobody listens on.
+BAD_URLS = [
+    "loop://?logging=bogus",
+    "loop://?bogus=1",
+    "hwgrep://[",
+    "nosuchscheme://x",
+    "/dev/ctrlbus-no-such-port",
+    "fault:bre=1|loop://",
+    "fault:ber=1e-4|hwgrep://[",
 ]
 
 
-@pytest.mark.parametrize(("board", "application"), RUNS)
-def test_checker_passes_on(board: str, application: str, port_images: Path, tmp_path: Path) -> None:
-    image = port_images / board / f"{application}-qemu.elf"
-    port = free_port()
-    monitor = Path(tempfile.mkdtemp(prefix="ctrlbus-mon-")) / "monitor.sock"  # short: max 107 bytes
-    command = [
-        *QEMU[board], str(image),
-        "-display", "none", "-nodefaults",
-        "-monitor", f"unix:{monitor},server=on,wait=off",
-        # nodelay: QEMU writes byte by byte, which Nagle's algorithm would hold back
-        "-chardev", f"socket,id=uart,host=127.0.0.1,port={port},server=on,wait=off,nodelay=on",
-        "-serial", "chardev:uart",
-    ]  # fmt: skip
-    qemu = Process(command, tmp_path / "qemu.log", False)
-    try:
-        connect_tcp_when_listening(port, qemu)
-        url, report = f"socket://127.0.0.1:{port}", tmp_path / "report.json"
-        assert_checker_passes(url, report, qemu.describe, CHECKER_ARGS.get(board, ()))
-        if board == "uno":
-            # After a whole checker run: the static RAM and the deepest stack still fit in 2 KB.
-            _text, data, bss = sections("avr-size", image)
-            stack = avr_stack_high_water(monitor, image, qemu)
-            assert data + bss + stack <= ATMEGA328P_RAM, f"static RAM {data + bss} B + stack {stack} B"
-    finally:
-        qemu.stop()
-        shutil.rmtree(monitor.parent, ignore_errors=True)
+@pytest.mark.parametrize("url", BAD_URLS)
+def test_open_failures_are_typed_and_name_the_url(url: str) -> None:
+    with pytest.raises(PortOpenError) as info:
+        open_link(url)
+    error = info.value
+    assert isinstance(error, LinkError)
+    # A nested fault URL names the part that failed.
+    assert error.url == url or (url.startswith("fault:") and url.endswith("|" + error.url))
+    assert error.url in str(error) and "\n" not in str(error)
 
 
-def avr_stack_high_water(monitor: Path, image: Path, qemu: Process) -> int:
-    """How deep the stack of the running AVR image has been, in bytes: the painted free RAM above
-    .bss, read through QEMU's monitor, up to its lowest byte that no longer holds the paint."""
-    symbols = subprocess.run(["avr-nm", str(image)], capture_output=True, text=True, check=True).stdout
-    end = next(int(line.split()[0], 16) for line in symbols.splitlines() if line.endswith(" _end"))
-    start = end - AVR_DATA_SPACE
-    count = AVR_RAM_END + 1 - start
-    with socket.socket(socket.AF_UNIX) as sock:
-        sock.connect(str(monitor))
-        sock.sendall(f"xp /{count}xb 0x{AVR_DATA_SPACE + start:x}\nquit\n".encode())
-        output = b""
-        deadline = time.monotonic() + 10
-        while chunk := sock.recv(65536):
-            output += chunk
-            assert time.monotonic() < deadline, f"QEMU's monitor did not finish: {qemu.describe()}"
-    ram = [int(value, 16) for line in re.findall(rb"^[0-9a-f]{16}: (.*)$", output, re.M)
-           for value in line.decode().split()]  # fmt: skip
-    assert len(ram) == count, f"read {len(ram)} of {count} RAM bytes from the monitor"
-    untouched = next((index for index, value in enumerate(ram) if value != STACK_PAINT), count)
-    return count - untouched
+@pytest.mark.parametrize(
+    "url", ["loop://?logging=bogus", "hwgrep://[", "nosuchscheme://x", "fault:bre=1|loop://"]
+)
+def test_a_wrong_url_is_a_usage_error(url: str) -> None:
+    with pytest.raises(PortURLError) as info:
+        open_link(url)
+    assert isinstance(info.value, UsageError)
 
 
-def sections(size_tool: str, image: Path) -> tuple[int, int, int]:
-    """.text, .data and .bss of an image, as the binutils `size` tool counts them."""
-    output = subprocess.run([size_tool, str(image)], capture_output=True, text=True, check=True).stdout
-    text, data, bss = (int(field) for field in output.splitlines()[1].split()[:3])
-    return text, data, bss
+def test_an_absent_device_is_not_a_usage_error() -> None:
+    with pytest.raises(PortOpenError) as info:
+        open_link("/dev/ctrlbus-no-such-port")
+    assert not isinstance(info.value, UsageError)
+    assert str(info.value) == "cannot open /dev/ctrlbus-no-such-port: No such file or directory"
 
 
-@pytest.mark.parametrize("image", ["minimal_base.elf", "minimal_base-qemu.elf"])
-def test_atmega328p_image_fits_the_chip(image: str, port_images: Path) -> None:
-    text, data, bss = sections("avr-size", port_images / "uno" / image)
-    assert text + data <= ATMEGA328P_FLASH, f"flash {text + data} B"
-    assert data + bss <= ATMEGA328P_RAM, f"static RAM {data + bss} B"
+def test_each_kind_of_url_has_one_scheme() -> None:
+    expected = {
+        "fault:ber=0|loop://": "fault:",
+        "socket://127.0.0.1:1": "socket://",
+        "loop://": "loop://",
+        "rfc2217://127.0.0.1:1": "rfc2217://",
+        "hwgrep://x": "hwgrep://",
+        "spy://loop://": "spy://",
+        "pty": "pty",
+        "listen:127.0.0.1:0": "listen:",
+        "/dev/ttyUSB0": "device path",
+        "COM3": "device path",
+    }
+    for url, name in expected.items():
+        assert scheme_for(url).name == name, url
+        assert sum(scheme.matches(url) for scheme in SCHEMES) == 1, url
 
 
-def test_cortex_m0plus_image_is_built(port_images: Path) -> None:
-    image = port_images / "cortex-m0plus" / "minimal_base.elf"
-    text, _data, _bss = sections("arm-none-eabi-size", image)
-    assert text > 0
-    attributes = subprocess.run(
-        ["arm-none-eabi-readelf", "-A", str(image)], capture_output=True, text=True, check=True
-    ).stdout
-    assert "Tag_CPU_arch: v6S-M" in attributes, attributes  # ARMv6-M, Cortex-M0+'s architecture
+def test_the_table_opens_what_each_scheme_names() -> None:
+    loop = open_link("loop://")
+    assert isinstance(loop, SerialLink)
+    loop.close()
+    faulty = open_link("fault:ber=0|loop://")
+    assert isinstance(faulty, FaultyLink) and isinstance(faulty.inner, SerialLink)
+    faulty.close()
+    pty = open_link("pty", serving=True)
+    assert isinstance(pty, PtyLink)
+    pty.close()
+    listener = serve_link(listen="127.0.0.1:0")
+    assert isinstance(listener, TcpServerLink) and listener.port > 0
+    listener.close()
+
+
+def test_serving_schemes_need_a_serving_caller() -> None:
+    with pytest.raises(PortURLError, match="creates a port for the peer"):
+        open_link("pty")
+    with pytest.raises(PortURLError, match="creates a port for the peer"):
+        open_link("listen:127.0.0.1:0")
+
+
+def test_a_new_scheme_is_one_registration(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr("ctrlbus.ports.SCHEMES", list(SCHEMES))
+    opened: list[str] = []
+
+    def open_test(url: str, baud: int) -> SerialLink:
+        opened.append(url)
+        return SerialLink("loop://", baud)
+
+    register_scheme(PortScheme("test://", lambda url: url.startswith("test://"), open_test), first=True)
+    link = open_link("test://anything")
+    link.close()
+    assert opened == ["test://anything"]
+    with pytest.raises(ValueError, match="registered already"):
+        register_scheme(PortScheme("test://", lambda url: False, open_test))
+
+
+def _capture_file(tmp_path: Path) -> Path:
+    path = tmp_path / "one.pcap"
+    with CaptureWriter.create(path) as writer:
+        writer.write(Direction.CORE_TO_BASE, b"\x10\x00\x10", 0.0)
+    return path
+
+
+# One regression per command that opens a port (issue 17, finding 1): a traceback and exit 1 before.
+COMMANDS = {
+    "core": ["core", "--port", "{url}", "--duration", "0.1"],
+    "check": ["check", "--port", "{url}"],
+    "sim": ["sim", "--port", "{url}"],
+    "capture": ["capture", "--port", "{url}", "-o", "{tmp}/out.pcap", "--duration", "0.1"],
+    "replay": ["replay", "--port", "{url}", "{capture}"],
+    "spy": ["spy", "--core", "{url}", "--base", "loop://", "--duration", "0.1"],
+}
+
+
+@pytest.mark.parametrize("url", ["loop://?logging=bogus", "loop://?bogus=1", "hwgrep://["])
+@pytest.mark.parametrize("command", sorted(COMMANDS))
+def test_every_command_says_a_bad_port_in_one_line_and_exits_2(
+    command: str, url: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    capture = _capture_file(tmp_path)
+    argv = [word.format(url=url, tmp=tmp_path, capture=capture) for word in COMMANDS[command]]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1, err
+    assert err.startswith(f"ctrlbus {command}: error: cannot open {url}: "), err
+    assert "Traceback" not in err

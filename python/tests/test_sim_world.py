@@ -13,6 +13,7 @@ from typing import Any
 
 import pytest
 
+from ctrlbus.constants import POWER_CHARGING, POWER_DC_CONNECTED, POWER_ON_DOCK
 from ctrlbus.errors import CtrlbusError, SimConfigError, UsageError
 from ctrlbus.kinematics import (
     DeadreckonDelta,
@@ -27,13 +28,7 @@ from ctrlbus.kinematics import (
 from ctrlbus.sim import World, load_base_description, load_room
 from ctrlbus.sim.description import base_description_from_dict
 from ctrlbus.sim.room import room_from_dict
-from ctrlbus.sim.world import (
-    BEACON_HOLD_S,
-    BUMPER_TRAVEL_MM,
-    POWER_CHARGING,
-    POWER_DC_CONNECTED,
-    POWER_ON_DOCK,
-)
+from ctrlbus.sim.world import BEACON_HOLD_S, BUMPER_TRAVEL_MM
 
 TRACK = 236.0
 RADIUS = 170.0
@@ -41,13 +36,13 @@ ACCEL = 1000.0
 
 
 def default_base_dict() -> dict[str, Any]:
-    text = resources.files("ctrlbus").joinpath("data", "sim-base.json").read_text(encoding="utf-8")
+    text = (resources.files("ctrlbus") / "data" / "sim-base.json").read_text(encoding="utf-8")
     data: dict[str, Any] = json.loads(text)
     return data
 
 
 def default_room_dict() -> dict[str, Any]:
-    text = resources.files("ctrlbus").joinpath("data", "sim-room.json").read_text(encoding="utf-8")
+    text = (resources.files("ctrlbus") / "data" / "sim-room.json").read_text(encoding="utf-8")
     data: dict[str, Any] = json.loads(text)
     return data
 

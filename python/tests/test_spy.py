@@ -35,8 +35,9 @@ from ctrlbus.cli.decode_cmd import decode_bytes
 from ctrlbus.cli.spy_cmd import Chunk, Spy, fault_transforms
 from ctrlbus.core import ConnectionState, CoreRunner, CoreSession
 from ctrlbus.errors import LinkError
-from ctrlbus.link import Link, link_pair, open_link
+from ctrlbus.link import Link, link_pair
 from ctrlbus.messages import Event, SendEvent
+from ctrlbus.ports import open_link
 from ctrlbus.sim.server import SimSettings, build_simulated_stack
 
 C = Direction.CORE_TO_BASE

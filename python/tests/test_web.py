@@ -248,7 +248,9 @@ def base_url(server: DashboardServer) -> str:
     return f"http://127.0.0.1:{server.port}"
 
 
-async def next_of_type(ws: aiohttp.ClientWebSocketResponse, kind: str, limit: int = 500) -> dict[str, Any]:
+async def next_of_type(
+    ws: aiohttp.ClientWebSocketResponse[bool], kind: str, limit: int = 500
+) -> dict[str, Any]:
     """The next message of `kind`, skipping snapshots and others in between."""
     for _ in range(limit):
         message = await ws.receive(timeout=10)
@@ -259,7 +261,7 @@ async def next_of_type(ws: aiohttp.ClientWebSocketResponse, kind: str, limit: in
     raise AssertionError(f"no {kind} message among {limit}")
 
 
-async def next_reply(ws: aiohttp.ClientWebSocketResponse) -> dict[str, Any]:
+async def next_reply(ws: aiohttp.ClientWebSocketResponse[bool]) -> dict[str, Any]:
     """The next ack or error: the reply to the last control message sent."""
     for _ in range(500):
         message = await ws.receive(timeout=10)

@@ -40,6 +40,9 @@ from typing import Any
 
 from ctrlbus import binconf
 from ctrlbus.capture import Direction
+from ctrlbus.compat import StrEnum
+from ctrlbus.constants import MOTION_BIT_NAMES as _MOTION_BITS
+from ctrlbus.constants import POWER_BIT_NAMES as _POWER_BITS
 from ctrlbus.errors import BinaryConfigError, MessageError, UnsupportedMessageError, UsageError
 from ctrlbus.frame import MAX_FRAME, DecoderEvent, DecoderStats, EventKind, Frame, StreamDecoder
 from ctrlbus.messages import (
@@ -120,7 +123,7 @@ def sender_name(direction: Direction | None) -> str | None:
     return "core" if direction is Direction.CORE_TO_BASE else "base"
 
 
-class Role(enum.StrEnum):
+class Role(StrEnum):
     REQUEST = "request"
     ANSWER = "answer"
 
@@ -207,7 +210,7 @@ class FrameNote:
         }
 
 
-class RejectReason(enum.StrEnum):
+class RejectReason(StrEnum):
     """Why bytes were not a frame: the decoder's events, plus two of our own."""
 
     GARBAGE = "garbage"
@@ -696,8 +699,6 @@ def _bits_text(value: int, bits: Mapping[int, str], none: str) -> str:
     return f"0x{value:02X} ({', '.join(set_bits) if set_bits else none})"
 
 
-_POWER_BITS = {0x01: "charging", 0x02: "DC connected", 0x04: "on the dock"}
-_MOTION_BITS = {0x02: "wheel stall", 0x04: "traction lost"}
 _HEALTH_BITS = {0x01: "warning", 0x02: "error", 0x04: "fatal"}
 _HEALTH_LEVELS = {1: "warning", 2: "error", 4: "fatal"}
 _HEALTH_COMPONENTS = {0: "user", 1: "system", 2: "power", 3: "motion", 4: "sensor"}

@@ -18,7 +18,6 @@ real time.
 
 from __future__ import annotations
 
-import enum
 import logging
 import math
 import threading
@@ -28,8 +27,23 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from dataclasses import fields as dataclass_fields
 from types import TracebackType
-from typing import Any, Self, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
+from ctrlbus.constants import (
+    COMPONENT_MOTION,
+    COMPONENT_POWER,
+    COMPONENT_SENSOR,
+    COMPONENT_SYSTEM,
+    COMPONENT_USER,
+    HEALTH_ERROR,
+    HEALTH_FATAL,
+    HEALTH_WARNING,
+    WATCHDOG_TRIPPED_CODE,
+    WATCHDOG_TRIPPED_MESSAGE,
+    Profile,
+    health_code,
+    parse_profile,
+)
 from ctrlbus.errors import (
     CtrlbusError,
     MessageFormatError,
@@ -82,6 +96,9 @@ from ctrlbus.messages import (
     decode_request,
 )
 
+if TYPE_CHECKING:
+    from typing_extensions import Self  # typing.Self from Python 3.11; annotations only
+
 __all__ = [
     "COMPONENT_MOTION",
     "COMPONENT_POWER",
@@ -127,56 +144,6 @@ DEFAULT_FRAME_TIMEOUT_S = 0.1
 DEFAULT_POLL_S = 0.01  # how long the real-time runner waits for bytes before ticking
 MAX_HEALTH_ERRORS = 16
 MAX_PENDING_COMMANDS = 16
-
-# Health error codes: bits 31..24 level, 23..16 component, 15..8 type, 7..0 index (reference §5).
-HEALTH_WARNING = 0x01
-HEALTH_ERROR = 0x02
-HEALTH_FATAL = 0x04
-COMPONENT_USER = 0
-COMPONENT_SYSTEM = 1
-COMPONENT_POWER = 2
-COMPONENT_MOTION = 3
-COMPONENT_SENSOR = 4
-# Types from 0x80 up are ctrlbus's own (the reference's types are all small numbers).
-TYPE_WATCHDOG_TRIPPED = 0x80
-
-
-def health_code(level: int, component: int, error_type: int, index: int = 0) -> int:
-    """The u32 health error code of its four bytes (each 0..255)."""
-    for name, value in (
-        ("level", level),
-        ("component", component),
-        ("error_type", error_type),
-        ("index", index),
-    ):
-        if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= 0xFF:
-            raise UsageError(f"health code {name} must be an integer 0..255, got {value!r}")
-    return (level << 24) | (component << 16) | (error_type << 8) | index
-
-
-WATCHDOG_TRIPPED_CODE = health_code(HEALTH_WARNING, COMPONENT_MOTION, TYPE_WATCHDOG_TRIPPED)  # 0x01038000
-WATCHDOG_TRIPPED_MESSAGE = "motor watchdog tripped"
-
-
-class Profile(enum.StrEnum):
-    """Which answer variants a base sends where the sources know two (reference §4-5).
-
-    reference: the 2018/v4 reference firmware (CONNECT 28 bytes, deadreckon 13 bytes, POLL with
-    nothing pending = OK 0). sdk2020: the sizes the vendor's 2020 master SDK reads (CONNECT 39,
-    deadreckon 17 with timestamp_ms, BUMPER 4, POLL with nothing pending = OK 2 `FF 00`).
-    """
-
-    REFERENCE = "reference"
-    SDK2020 = "sdk2020"
-
-
-def parse_profile(value: Profile | str) -> Profile:
-    """The Profile named `value` ("reference" or "sdk2020"); UsageError otherwise."""
-    try:
-        return Profile(value)
-    except ValueError:
-        choices = " or ".join(profile.value for profile in Profile)
-        raise UsageError(f"unknown profile {value!r} (choose {choices})") from None
 
 
 def _positive_or_none(owner: str, name: str, value: float | None) -> None:

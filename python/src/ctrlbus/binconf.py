@@ -37,6 +37,41 @@ from typing import TypeAlias
 
 from ctrlbus.errors import BinaryConfigError
 
+__all__ = [
+    "DICTIONARY",
+    "DICTIONARY_IDS",
+    "EXAMPLE_CONFIG_FILE",
+    "INT_TAGS",
+    "MAX_DEPTH",
+    "REFERENCE_MAX_BLOB",
+    "SCALAR_TAGS",
+    "TAG_BYTES",
+    "TAG_DICT",
+    "TAG_F32_BITS",
+    "TYPE_ARRAY",
+    "TYPE_DICT_STRING",
+    "TYPE_F32",
+    "TYPE_FALSE",
+    "TYPE_OBJECT",
+    "TYPE_S32",
+    "TYPE_STRING",
+    "TYPE_TRUE",
+    "TYPE_U8",
+    "TYPE_U16",
+    "JsonValue",
+    "decode",
+    "dump_json",
+    "encode",
+    "example_blob",
+    "example_config",
+    "example_config_text",
+    "float32_bits",
+    "id_spelling",
+    "load_json",
+    "parse_id_spelling",
+    "shortest_float32",
+]
+
 JsonValue: TypeAlias = "bool | int | float | str | list[JsonValue] | dict[str, JsonValue] | None"
 
 TYPE_U8 = 0x10

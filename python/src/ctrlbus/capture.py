@@ -28,6 +28,20 @@ from typing import BinaryIO
 
 from ctrlbus.errors import CaptureError
 
+__all__ = [
+    "LINKTYPE_USER0",
+    "MAGIC_MICROSECONDS",
+    "MAGIC_NANOSECONDS",
+    "MAX_CHUNK",
+    "SNAPLEN",
+    "CaptureReader",
+    "CaptureRecord",
+    "CaptureWriter",
+    "Direction",
+    "looks_like_capture",
+    "read_capture",
+]
+
 LINKTYPE_USER0 = 147
 SNAPLEN = 65535
 # Data bytes per record: the direction byte takes one of the snapshot length.

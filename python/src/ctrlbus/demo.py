@@ -1,7 +1,9 @@
 # SPDX-License-Identifier: MIT
-"""`python -m ctrlbus.demo` (what `make demo` runs): a base, the Core emulator and the dashboard.
+"""`ctrlbus demo` (what `make demo` runs): a base, the Core emulator and the dashboard.
 
-    python -m ctrlbus.demo [--base sim|c|qemu] [--http HOST[:PORT]] [--token T] [--speed X]
+    ctrlbus demo [--base sim|c|qemu] [--http HOST[:PORT]] [--token T] [--speed X]
+
+(`python -m ctrlbus.demo` is the same.)
 
 - `--base sim` (default): the Python simulated base, in this process, serving a real pty; the
   dashboard also shows the simulator's ground truth (room, dock, beacons, true pose).
@@ -38,6 +40,23 @@ from ctrlbus.web.source import DashboardSource
 if TYPE_CHECKING:
     from ctrlbus.sim.base import SimulatedBase
 
+__all__ = [
+    "CHILD_START_TIMEOUT_S",
+    "CHILD_STOP_TIMEOUT_S",
+    "DEFAULT_C_BASE",
+    "DEFAULT_FIRMWARE",
+    "DESCRIPTION",
+    "PTY_PATTERN",
+    "REPO_ROOT",
+    "ChildProcess",
+    "RunningBase",
+    "SimulatorAttached",
+    "add_demo_arguments",
+    "build_parser",
+    "main",
+    "run",
+]
+
 REPO_ROOT = Path(__file__).resolve().parents[3]
 DEFAULT_C_BASE = REPO_ROOT / "build" / "c" / "examples" / "posix_base" / "posix_base"
 DEFAULT_FIRMWARE = REPO_ROOT / "build" / "firmware" / "ctrlbus-base.elf"
@@ -46,11 +65,17 @@ CHILD_START_TIMEOUT_S = 15.0
 CHILD_STOP_TIMEOUT_S = 3.0
 
 
+DESCRIPTION = "Run a base, the Core emulator talking to it over a pty, and the browser dashboard."
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="python -m ctrlbus.demo",
-        description="Run a base, the Core emulator talking to it over a pty, and the browser dashboard.",
-    )
+    parser = argparse.ArgumentParser(prog="python -m ctrlbus.demo", description=DESCRIPTION)
+    add_demo_arguments(parser)
+    return parser
+
+
+def add_demo_arguments(parser: argparse.ArgumentParser) -> None:
+    """The demo's options, for `python -m ctrlbus.demo` and `ctrlbus demo` alike."""
     parser.add_argument(
         "--base",
         choices=("sim", "c", "qemu"),
@@ -73,7 +98,6 @@ def build_parser() -> argparse.ArgumentParser:
         f"or firmware image (--base qemu, default {DEFAULT_FIRMWARE.relative_to(REPO_ROOT)})",
     )
     add_dashboard_arguments(parser)
-    return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -133,14 +157,14 @@ def _start_base(args: argparse.Namespace, cleanup: contextlib.ExitStack) -> Runn
         return _start_sim_base(args, cleanup)
     if args.base == "c":
         program = args.base_binary or DEFAULT_C_BASE
-        _require_file(program, "the C host base", "make c-build")
+        _require_file(program, "the C host base", 'make demo DEMO_ARGS="--base c" or make c-build')
         child = ChildProcess("posix_base", [str(program), "--pty"])
     else:
         qemu = shutil.which("qemu-system-arm")
         if qemu is None:
-            raise UsageError("qemu-system-arm is not installed (scripts/setup.sh installs it)")
+            raise UsageError("qemu-system-arm is not installed (scripts/setup.sh qemu installs it)")
         firmware = args.base_binary or DEFAULT_FIRMWARE
-        _require_file(firmware, "the firmware image", "make firmware")
+        _require_file(firmware, "the firmware image", 'make demo DEMO_ARGS="--base qemu" or make firmware')
         command = [qemu, "-M", "mps2-an385", "-display", "none", "-monitor", "none"]
         command += ["-serial", "pty", "-kernel", str(firmware)]
         child = ChildProcess("qemu", command)
@@ -214,7 +238,7 @@ class SimulatorAttached:
 def _start_core(base: RunningBase, cleanup: contextlib.ExitStack) -> DashboardSource:
     """The Core emulator on the base's pty, in real time; the source the dashboard shows."""
     from ctrlbus.core import CoreRunner, CoreSession
-    from ctrlbus.link import open_link
+    from ctrlbus.ports import open_link
 
     session = CoreSession(port=base.port)
     runner = CoreRunner(session, open_link(base.port), reopen=lambda: open_link(base.port))
@@ -260,7 +284,7 @@ class ChildProcess:
                 stderr=subprocess.PIPE,
                 text=True,
                 errors="replace",
-                process_group=0,  # Ctrl-C reaches only us; we stop the child in order
+                start_new_session=True,  # Ctrl-C reaches only us; we stop the child in order
             )
         except OSError as exc:
             raise LinkError(f"cannot start {self.name}: {exc.strerror or exc}") from None

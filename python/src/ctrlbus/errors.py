@@ -3,6 +3,23 @@
 
 from __future__ import annotations
 
+__all__ = [
+    "BinaryConfigError",
+    "CaptureError",
+    "CtrlbusError",
+    "FrameError",
+    "LinkError",
+    "MessageError",
+    "MessageFormatError",
+    "PortOpenError",
+    "PortURLError",
+    "ProtocolTimeout",
+    "SimConfigError",
+    "UnsupportedMessageError",
+    "UnsupportedSubcommandError",
+    "UsageError",
+]
+
 
 class CtrlbusError(Exception):
     """Base class of all ctrlbus errors."""
@@ -44,6 +61,20 @@ class ProtocolTimeout(CtrlbusError, TimeoutError):
 
 class UsageError(CtrlbusError):
     """Bad command-line or API arguments; the CLI prints it on one line and exits 2."""
+
+
+class PortOpenError(LinkError):
+    """A port could not be opened (absent, busy, refused); `url` names it, `reason` says why."""
+
+    def __init__(self, url: str, reason: str, *, message: str | None = None) -> None:
+        shown = url if url.isprintable() else repr(url)
+        super().__init__(message or f"cannot open {shown}: {reason}")
+        self.url = url
+        self.reason = reason
+
+
+class PortURLError(PortOpenError, UsageError):
+    """A port URL that is wrong in itself: unknown scheme, bad option, bad fault spec."""
 
 
 class BinaryConfigError(CtrlbusError, ValueError):

@@ -13,7 +13,7 @@ the same spec, seed, chunks and times always give the same faults.
 Three ways to use it:
 
 - `FaultyLink(inner, spec, seed)`: any `Link` with faults applied to what is written (`tx`) and
-  to what is read (`rx`), in real time; `open_link("fault:SPEC|URL")` builds one.
+  to what is read (`rx`), in real time; `ctrlbus.ports.open_link("fault:SPEC|URL")` builds one.
 - `FaultFilter(model)`: the model as a `ctrlbus.vtime` byte filter (bytes in, bytes due out).
 - `FaultModel` itself, for anything that moves bytes (the spy, a test).
 
@@ -22,7 +22,6 @@ docs/reliability.md is the manual: the spec grammar, what each fault does, and t
 
 from __future__ import annotations
 
-import enum
 import math
 import random
 import re
@@ -33,8 +32,9 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+from ctrlbus.compat import StrEnum
 from ctrlbus.errors import UsageError
-from ctrlbus.link import DEFAULT_BAUD, Link
+from ctrlbus.link import Link
 
 __all__ = [
     "FAULT_URL_PREFIX",
@@ -48,7 +48,6 @@ __all__ = [
     "FaultSpec",
     "FaultyLink",
     "fault_models",
-    "open_faulty_link",
     "split_fault_url",
 ]
 
@@ -59,7 +58,7 @@ MAX_RUN_BYTES = 1 << 20  # largest burst, drop run or split piece a spec may ask
 _FLAGS = (0x10, 0x50)  # frame flags a garbage burst imitates
 
 
-class Direction(enum.StrEnum):
+class Direction(StrEnum):
     """Which way bytes go, seen from whoever holds the link: `tx` is written, `rx` is read.
 
     For the Core emulator (and in `ctrlbus.vtime`, where the Core holds the line) tx is
@@ -805,11 +804,3 @@ def split_fault_url(url: str) -> tuple[FaultSpec, str]:
             f"'fault:ber=1e-4|socket://127.0.0.1:5555'; got {url!r}"
         )
     return FaultSpec.parse(spec_text), inner.strip()
-
-
-def open_faulty_link(url: str, baud: int = DEFAULT_BAUD) -> FaultyLink:
-    """Open `fault:SPEC|URL`: the port URL (which may itself be a fault URL) behind the faults."""
-    from ctrlbus.link import open_link  # the link layer calls us for fault: URLs
-
-    spec, inner_url = split_fault_url(url)
-    return FaultyLink(open_link(inner_url, baud), spec)

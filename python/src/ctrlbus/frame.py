@@ -13,10 +13,10 @@ module never reads a clock: time is passed in by the caller.
 
 from __future__ import annotations
 
-import enum
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+from ctrlbus.compat import StrEnum
 from ctrlbus.errors import FrameError, UsageError
 
 __all__ = [
@@ -189,7 +189,7 @@ assert sorted(Frame.__slots__) == sorted(_FrameBuilder.__slots__), (
 )
 
 
-class EventKind(enum.StrEnum):
+class EventKind(StrEnum):
     """What the decoder rejected (names shared with the C library and the vectors)."""
 
     GARBAGE = "garbage"

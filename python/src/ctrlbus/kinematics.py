@@ -14,6 +14,18 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+__all__ = [
+    "DeadreckonDelta",
+    "Pose",
+    "deadreckon_from_wheel_travel",
+    "integrate_pose",
+    "normalize_angle_deg",
+    "relative_pose",
+    "to_world",
+    "velocity_from_wheel_speeds",
+    "wheel_speeds_from_velocity",
+]
+
 # Below this turn (radians) sin(t)/t is taken from its series (and t = 0 needs no special case);
 # the series' next term is then far below float resolution.
 _SMALL_TURN_RAD = 1e-4

@@ -6,8 +6,9 @@ Every link has the same small interface (`Link`), so the Core emulator, the base
 fault injector do not care whether the other end is a USB adapter, a pty, a TCP socket or an
 in-process pipe.
 
-- `open_link(url)` opens any pyserial URL (`/dev/ttyUSB0`, `socket://127.0.0.1:5555`, `loop://`),
-  or `fault:SPEC|URL`: that port behind the fault injector (ctrlbus.faults).
+- `SerialLink` is a pyserial port opened from a URL (`/dev/ttyUSB0`, `socket://127.0.0.1:5555`,
+  `loop://`). Open ports by URL with `ctrlbus.ports.open_link`, which knows every scheme
+  (`fault:`, `pty`, `listen:` too) and turns any failure into one typed error naming the URL.
 - `PtyLink` creates a pseudo-terminal and serves on its master side; `path` is what the other
   program opens.
 - `TcpServerLink` listens on HOST:PORT; each accepted connection is one serial link and a new
@@ -29,6 +30,19 @@ import time
 from typing import Protocol
 
 from ctrlbus.errors import LinkError, UsageError
+
+__all__ = [
+    "DEFAULT_BAUD",
+    "READ_CHUNK",
+    "FdLink",
+    "Link",
+    "PipeLink",
+    "PtyLink",
+    "SerialLink",
+    "TcpServerLink",
+    "link_pair",
+    "parse_host_port",
+]
 
 DEFAULT_BAUD = 115200
 READ_CHUNK = 4096
@@ -66,10 +80,8 @@ class SerialLink:
         if baud <= 0:
             raise UsageError(f"baud rate must be positive, got {baud}")
         self._url = url
-        try:
-            self._port = serial.serial_for_url(url, baudrate=baud, timeout=0, write_timeout=5)
-        except (serial.SerialException, ValueError, OSError) as exc:
-            raise LinkError(f"cannot open {url}: {_first_line(exc)}") from None
+        # Failures propagate as pyserial raises them; ctrlbus.ports.open_link types them.
+        self._port = serial.serial_for_url(url, baudrate=baud, timeout=0, write_timeout=5)
         self._lock = threading.Lock()
 
     @property
@@ -387,30 +399,3 @@ def link_pair(names: tuple[str, str] = ("pair:a", "pair:b")) -> tuple[PipeLink, 
     """Two in-process links wired back to back: what one writes, the other reads."""
     a_to_b, b_to_a = _Pipe(), _Pipe()
     return PipeLink(names[0], b_to_a, a_to_b), PipeLink(names[1], a_to_b, b_to_a)
-
-
-def open_link(url: str, baud: int = DEFAULT_BAUD) -> Link:
-    """Open a master-side port by pyserial URL; LinkError with a one-line reason on failure.
-
-    `fault:SPEC|URL` opens URL behind the fault injector (ctrlbus.faults, docs/reliability.md).
-    """
-    if url.startswith("fault:"):
-        from ctrlbus.faults import open_faulty_link  # it builds on this module
-
-        return open_faulty_link(url, baud)
-    return SerialLink(url, baud)
-
-
-def serve_link(
-    *, pty: bool = False, listen: str | None = None, port: str | None = None, baud: int = DEFAULT_BAUD
-) -> Link:
-    """Open the base side of a link the way `--pty`, `--listen HOST:PORT` or `--port URL` say."""
-    if sum((pty, listen is not None, port is not None)) != 1:
-        raise UsageError("give exactly one of --pty, --listen HOST:PORT, --port URL")
-    if pty:
-        return PtyLink()
-    if listen is not None:
-        host, tcp_port = parse_host_port(listen)
-        return TcpServerLink(host, tcp_port)
-    assert port is not None
-    return open_link(port, baud)

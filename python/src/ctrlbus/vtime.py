@@ -30,6 +30,16 @@ from typing import Protocol
 from ctrlbus.core.session import CoreSession
 from ctrlbus.errors import UsageError
 
+__all__ = [
+    "DEFAULT_BASE_LATENCY_S",
+    "DEFAULT_BYTE_TIME_S",
+    "DEFAULT_TICK_PERIOD_S",
+    "ByteFilter",
+    "SansIoBase",
+    "SerialLine",
+    "VirtualBus",
+]
+
 DEFAULT_BYTE_TIME_S = 10 / 115200  # one 8N1 character at 115200 baud
 DEFAULT_BASE_LATENCY_S = 0.001  # the reference answers 1-5 ms after the request
 DEFAULT_TICK_PERIOD_S = 0.005

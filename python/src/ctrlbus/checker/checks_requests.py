@@ -12,6 +12,13 @@ from __future__ import annotations
 from ctrlbus import binconf
 from ctrlbus.checker.framework import Check, CheckContext, Rule, error_code_of
 from ctrlbus.checker.probe import describe_frame
+from ctrlbus.constants import (
+    MOTION_DEFINED_BITS,
+    POWER_DEFINED_BITS,
+    PROFILE_ANSWER_SIZES,
+    Profile,
+    parse_profile,
+)
 from ctrlbus.errors import BinaryConfigError
 from ctrlbus.frame import Frame, encode
 from ctrlbus.messages import (
@@ -60,8 +67,6 @@ MAX_ANGLE_Q8 = 360 * 256
 PLAUSIBLE_RADIUS_MM = 2000.0
 PLAUSIBLE_OFFSET_MM = 5000.0  # a sensor or bumper more than 5 m from the robot's centre
 PLAUSIBLE_DISTANCE_MM = 100_000.0  # a distance reading beyond 100 m
-POWER_DEFINED_BITS = 0x3F  # bits 0-2 [ref], 3-5 from the 2020 SDK (§5.4)
-MOTION_DEFINED_BITS = 0x06  # bit1 wheel stall, bit2 traction lost (§5.5)
 MAX_PROBES = 8
 POLL_ROUNDS = 20  # POLL_BASE_ANS_CMD rounds before calling a pending command stuck
 MAX_HEALTH_ENTRIES_READ = 64
@@ -428,11 +433,6 @@ def check_health(ctx: CheckContext) -> None:
 
 # --- 21 profile ------------------------------------------------------------------------------
 
-# What each base profile sends (§6.2): payload sizes of OK answers.
-PROFILE_SIZES: dict[str, dict[str, int]] = {
-    "reference": {"CONNECT_BASE": 28, "SET_V_AND_GET_DEADRECKON": 13, "POLL_BASE_CMD": 0},
-    "sdk2020": {"CONNECT_BASE": 39, "SET_V_AND_GET_DEADRECKON": 17, "POLL_BASE_CMD": 2},
-}
 COMMON_SIZES = {
     "GET_BASE_STATUS": 2,
     "GET_BASE_SENSOR_DATA": 64,
@@ -446,14 +446,14 @@ def check_profile(ctx: CheckContext) -> None:
     profile = ctx.options.profile
     if profile == "any":
         ctx.skip("no --profile given: every variant a master must accept is accepted")
-    sizes = {**COMMON_SIZES, **PROFILE_SIZES[profile]}
+    sizes = {**COMMON_SIZES, **PROFILE_ANSWER_SIZES[parse_profile(profile)]}
     checked: list[str] = []
 
     def frame_type(name: str, frame: Frame) -> None:
         if frame.long:
             return
         text = f"{name} answered in a standard frame; the {profile} profile answers in long frames"
-        if profile == "sdk2020":
+        if profile == Profile.SDK2020:
             ctx.fail(text + " (the 2020 SDK only reads frames starting 0x50)")
         else:
             ctx.warn(text + " (allowed as an option, §3.4)")

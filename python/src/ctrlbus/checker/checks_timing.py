@@ -18,6 +18,7 @@ from ctrlbus.checker.checks_requests import read_health
 from ctrlbus.checker.checks_wire import bad_checksum, ctrl
 from ctrlbus.checker.framework import Check, CheckAborted, CheckContext, Rule
 from ctrlbus.checker.probe import describe_frame
+from ctrlbus.constants import WATCHDOG_TRIPPED_CODE as WATCHDOG_CODE
 from ctrlbus.errors import MessageError
 from ctrlbus.frame import encode
 from ctrlbus.messages import (
@@ -58,7 +59,6 @@ CALIBRATE_S = 0.25  # spacing of the two readings that measure the spin rate
 KEEPALIVE_S = 0.2  # SYNC / ECHO spacing while silent on CTRL_BUS
 MIN_RATE_FRACTION = 0.2  # share of the commanded or measured motion below which nothing moves
 MIN_SPIN_TRAVEL_MM_S = 10.0  # wheel travel (both wheels) below which the SET_V spin cannot be timed
-WATCHDOG_CODE = 0x01038000  # §10.3: "motor watchdog tripped"
 LATENCY_WARN_S = 0.050  # p99 above this: warning (the reference answers in 1-5 ms, §8.4)
 LATENCY_LATE_LIMIT = 5  # answers later than the request timeout before the sampling stops
 LATENCY_LOGGED = 4  # exchanges of the latency series kept in the transcript

@@ -11,15 +11,15 @@ once the link is dead (no valid frame ever came back, or the base stopped answer
 from __future__ import annotations
 
 import contextlib
-import enum
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from datetime import UTC, datetime
+from datetime import datetime, timezone
 from typing import NoReturn, TypeVar
 
-from ctrlbus.base import Profile
 from ctrlbus.checker.probe import FLUSHING_SYNC, Evidence, Exchange, NoAnswer, Prober, describe_frame
+from ctrlbus.compat import StrEnum
+from ctrlbus.constants import Profile
 from ctrlbus.errors import LinkError, MessageError, ProtocolTimeout, UsageError
 from ctrlbus.frame import Frame
 from ctrlbus.messages import (
@@ -62,7 +62,7 @@ DEAD_AFTER_SILENT_REQUESTS = 3  # requests in a row with no byte back: the base 
 PROFILES = ("any", *(profile.value for profile in Profile))  # "any": every variant a master accepts
 
 
-class Status(enum.StrEnum):
+class Status(StrEnum):
     PASS = "pass"
     WARN = "warn"
     FAIL = "fail"
@@ -354,7 +354,7 @@ def run_checks(
     report = Report(
         port=prober.link.name,
         options=options,
-        started=datetime.now(UTC).isoformat(timespec="seconds"),
+        started=datetime.now(timezone.utc).isoformat(timespec="seconds"),
     )
     prober.start_transcript()
     _hello(prober)

@@ -17,6 +17,13 @@ from typing import NoReturn
 from ctrlbus import __version__
 from ctrlbus.errors import CtrlbusError
 
+__all__ = [
+    "SUBCOMMANDS",
+    "OneLineErrorParser",
+    "build_parser",
+    "main",
+]
+
 # Subcommand modules, in the order `ctrlbus --help` lists them. A module that is missing
 # (an optional layer not installed) is skipped rather than breaking the whole command.
 SUBCOMMANDS: tuple[str, ...] = (
@@ -28,6 +35,8 @@ SUBCOMMANDS: tuple[str, ...] = (
     "capture",
     "replay",
     "config",
+    "demo",
+    "completion",
 )
 
 

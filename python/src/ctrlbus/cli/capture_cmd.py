@@ -46,6 +46,15 @@ from ctrlbus.frame import MAX_FRAME
 from ctrlbus.link import Link
 from ctrlbus.tap import DEFAULT_SKEW_S, TapMerger
 
+__all__ = [
+    "DESCRIPTION",
+    "READ_TIMEOUT_S",
+    "ChunkSink",
+    "record",
+    "register",
+    "run",
+]
+
 DESCRIPTION = """\
 Record the bytes one port receives in a pcap capture (docs/capture-format.md), one record per
 read with its time. --direction says who sent them: core (default: the port hears the Core's

@@ -32,7 +32,15 @@ from ctrlbus.checker import (
 from ctrlbus.checker.framework import DEFAULT_LATENCY_COUNT, DEFAULT_TIMEOUT_S
 from ctrlbus.cli.common import add_baud_argument, add_port_argument, write_output
 from ctrlbus.errors import UsageError
-from ctrlbus.link import open_link
+from ctrlbus.ports import open_link
+
+__all__ = [
+    "DESCRIPTION",
+    "list_checks",
+    "options_from_args",
+    "register",
+    "run",
+]
 
 DESCRIPTION = """\
 Check a base against docs/protocol.md: a numbered list of checks, each naming the rules it

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import math
+import os
 import re
 import signal
 import sys
@@ -16,7 +17,8 @@ from types import FrameType
 from typing import TextIO
 
 from ctrlbus.errors import UsageError
-from ctrlbus.link import DEFAULT_BAUD, Link, PtyLink, TcpServerLink, open_link, parse_host_port, serve_link
+from ctrlbus.link import DEFAULT_BAUD, Link, PtyLink, TcpServerLink, parse_host_port
+from ctrlbus.ports import open_link
 
 __all__ = [
     "DEFAULT_BAUD",
@@ -215,14 +217,8 @@ ENDPOINT_HELP = (
 
 def open_endpoint(spec: str, baud: int = DEFAULT_BAUD) -> Link:
     """Open one end of a link the way the tools that sit on a link (spy, capture, replay) take it:
-    'pty', 'listen:HOST:PORT' or a pyserial URL. UsageError / LinkError with one line otherwise."""
-    if spec == "pty":
-        return serve_link(pty=True)
-    if spec.startswith("listen:"):
-        return serve_link(listen=spec[len("listen:") :])
-    if not spec:
-        raise UsageError("empty port: give a URL, 'pty' or 'listen:HOST:PORT'")
-    return open_link(spec, baud)
+    'pty', 'listen:HOST:PORT' or a pyserial URL. PortOpenError / PortURLError naming it otherwise."""
+    return open_link(spec, baud, serving=True)
 
 
 def endpoint_address(link: Link) -> str:
@@ -287,15 +283,17 @@ def add_color_argument(parser: argparse.ArgumentParser) -> None:
         "--color",
         choices=("auto", "always", "never"),
         default="auto",
-        help="colour the output: auto (when stdout is a terminal, default), always, never",
+        help="colour the output: auto (when stdout is a terminal and $NO_COLOR is unset or empty, "
+        "default), always, never",
     )
 
 
 def use_color(choice: str, stream: TextIO | None = None) -> bool:
-    """Whether to colour: 'always', 'never', or 'auto' = the stream is a terminal."""
+    """Whether to colour: 'always', 'never', or 'auto' = the stream is a terminal and NO_COLOR
+    (no-color.org) is not set to a non-empty value."""
     if choice == "always":
         return True
-    if choice == "never":
+    if choice == "never" or os.environ.get("NO_COLOR"):
         return False
     stream = stream if stream is not None else sys.stdout
     isatty = getattr(stream, "isatty", None)

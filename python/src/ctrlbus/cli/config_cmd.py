@@ -18,6 +18,13 @@ from typing import Any
 from ctrlbus import binconf
 from ctrlbus.cli.common import format_hex, parse_hex_text, read_input_bytes, write_output
 
+__all__ = [
+    "DESCRIPTION",
+    "blob_from_input",
+    "register",
+    "run",
+]
+
 DESCRIPTION = """\
 Convert the binary configuration that a base serves for GET_BASE_CONF_ADV (0x21) to JSON and back.
 decode then encode gives back the same bytes; encode then decode gives back the same JSON

@@ -31,13 +31,26 @@ from ctrlbus.cli.common import (
     positive_number,
     stop_on_signals,
 )
+from ctrlbus.constants import Profile
 from ctrlbus.core import CoreConfig, CoreRunner, CoreSession, PollRates, byte_time_for_baud
 from ctrlbus.core.status import SCREEN_HOME_CLEAR, json_status, render_screen, status_line
 from ctrlbus.errors import ProtocolTimeout, UsageError
-from ctrlbus.link import Link, open_link
+from ctrlbus.link import Link
+from ctrlbus.ports import open_link
 
 if TYPE_CHECKING:
     from ctrlbus.web.server import DashboardServer
+
+__all__ = [
+    "DEFAULT_CONNECT_TIMEOUT_S",
+    "DEFAULT_INTERVAL_S",
+    "DESCRIPTION",
+    "MIN_INTERVAL_S",
+    "StatusOutput",
+    "config_from_args",
+    "register",
+    "run",
+]
 
 DEFAULT_CONNECT_TIMEOUT_S = 5.0
 DEFAULT_INTERVAL_S = 0.5
@@ -81,8 +94,8 @@ def register(subparsers: Any) -> None:
     )
     parser.add_argument(
         "--profile",
-        choices=("reference", "sdk2020"),
-        default="reference",
+        choices=[profile.value for profile in Profile],
+        default=Profile.REFERENCE.value,
         help="requests in standard frames (reference, default) or long frames (sdk2020)",
     )
     parser.add_argument(
@@ -116,7 +129,7 @@ def config_from_args(args: argparse.Namespace) -> CoreConfig:
         request_timeout_s=positive_number("--timeout-ms", args.timeout_ms) / 1000.0,
         retries=int(retries),
         byte_time_s=byte_time_for_baud(args.baud),
-        long_frames=args.profile == "sdk2020",
+        long_frames=args.profile == Profile.SDK2020,
     )
 
 

@@ -45,6 +45,18 @@ from ctrlbus.cli.common import (
 from ctrlbus.errors import UsageError
 from ctrlbus.frame import DecoderStats
 
+__all__ = [
+    "DEFAULT_TIMEOUT_MS",
+    "DESCRIPTION",
+    "Decoded",
+    "decode_bytes",
+    "detect_format",
+    "register",
+    "run",
+    "summary_json",
+    "summary_text",
+]
+
 DESCRIPTION = """\
 Decode Control Bus bytes into an annotated conversation. FILE ('-' or nothing: stdin) is a capture
 (pcap from `ctrlbus capture` / `ctrlbus spy --capture`), hex text ('10 02 F8 30 DA', '0x10,0x02',

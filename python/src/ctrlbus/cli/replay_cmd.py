@@ -33,6 +33,14 @@ from ctrlbus.cli.common import (
 from ctrlbus.errors import UsageError
 from ctrlbus.link import Link, TcpServerLink
 
+__all__ = [
+    "DESCRIPTION",
+    "play",
+    "register",
+    "replay_schedule",
+    "run",
+]
+
 DESCRIPTION = """\
 Play one side of a capture into a port: the chunks that side sent (--direction core, the default:
 the Core's requests; base: the base's answers), each at its recorded time relative to the first one,

@@ -19,9 +19,18 @@ from typing import Any
 
 from ctrlbus.base import DEFAULT_FRAME_TIMEOUT_S, DEFAULT_WATCHDOG_S, serve
 from ctrlbus.cli.common import add_serve_arguments, stop_on_signals
+from ctrlbus.constants import Profile
 from ctrlbus.errors import UsageError
 from ctrlbus.sim.description import load_base_description
 from ctrlbus.sim.server import MAX_TIME_SCALE, SimServer, SimSettings
+
+__all__ = [
+    "DESCRIPTION",
+    "MAX_FRAME_TIMEOUT_MS",
+    "register",
+    "run",
+    "settings_from_args",
+]
 
 MAX_FRAME_TIMEOUT_MS = 60_000  # as posix_base's --frame-timeout-ms
 
@@ -53,7 +62,7 @@ def register(subparsers: Any) -> None:
     )
     parser.add_argument(
         "--profile",
-        default="reference",
+        default=Profile.REFERENCE.value,
         metavar="NAME",
         help="answer variants: reference (2018 firmware sizes, default) or sdk2020 (2020 SDK sizes)",
     )

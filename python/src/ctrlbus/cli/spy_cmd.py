@@ -44,6 +44,19 @@ from ctrlbus.errors import CaptureError, CtrlbusError, LinkError, UsageError
 from ctrlbus.faults import FaultFilter, FaultSpec, fault_models
 from ctrlbus.link import Link
 
+__all__ = [
+    "DESCRIPTION",
+    "HELD_POLL_S",
+    "IDLE_S",
+    "READ_TIMEOUT_S",
+    "ByteTransform",
+    "Chunk",
+    "Spy",
+    "fault_transforms",
+    "register",
+    "run",
+]
+
 DESCRIPTION = """\
 Forward bytes between a Core and a base unchanged and show the decoded conversation live (the
 same annotations as `ctrlbus decode`). --core and --base each take a pyserial URL (/dev/ttyUSB0,

@@ -14,6 +14,20 @@ import math
 
 from ctrlbus.kinematics import DeadreckonDelta, Pose, integrate_pose
 
+__all__ = [
+    "ANGLE_TOLERANCE_DEG",
+    "DISTANCE_TOLERANCE_MM",
+    "MIN_SPEED_MPS",
+    "MIN_TURN_RADPS",
+    "MODE_EXTERNAL",
+    "MODE_GO_HOME",
+    "SLOWDOWN_GAIN_PER_S",
+    "STALL_LIMIT_S",
+    "Action",
+    "DriveDistance",
+    "TurnAngle",
+]
+
 MODE_EXTERNAL = "external"
 MODE_GO_HOME = "go_home"
 

@@ -14,6 +14,14 @@ from ctrlbus.errors import UsageError
 from ctrlbus.frame import MAX_FRAME
 from ctrlbus.link import DEFAULT_BAUD
 
+__all__ = [
+    "BITS_PER_BYTE",
+    "CoreConfig",
+    "DockingConfig",
+    "PollRates",
+    "byte_time_for_baud",
+]
+
 # One UART character at 8N1 is 10 bits: start, 8 data, stop.
 BITS_PER_BYTE = 10
 

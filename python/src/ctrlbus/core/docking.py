@@ -27,14 +27,25 @@ from __future__ import annotations
 import enum
 import math
 
+from ctrlbus.constants import POWER_CHARGING, POWER_DC_CONNECTED, POWER_ON_DOCK
 from ctrlbus.core.actions import MODE_GO_HOME, Action
 from ctrlbus.core.config import DockingConfig
 
+__all__ = [
+    "BEACON_MAIN",
+    "MAX_REALIGNMENTS",
+    "MIN_TURN_RADPS",
+    "PROBE_LEFT",
+    "PROBE_MAIN",
+    "PROBE_RIGHT",
+    "TURN_GAIN_PER_S",
+    "GoHome",
+    "Phase",
+    "on_dock",
+]
+
 PROBE_LEFT, PROBE_MAIN, PROBE_RIGHT = 0, 1, 2
 BEACON_MAIN = 0x02  # bit of the main beacon in each probe's bitmap
-POWER_CHARGING = 0x01
-POWER_DC_CONNECTED = 0x02
-POWER_ON_DOCK = 0x04
 TURN_GAIN_PER_S = 2.0
 MIN_TURN_RADPS = 0.04
 MAX_REALIGNMENTS = 8

@@ -16,6 +16,21 @@ from dataclasses import dataclass
 from ctrlbus.binconf import JsonValue
 from ctrlbus.messages import GetBaseConfAnswer, Position
 
+__all__ = [
+    "BUMPER_BITS",
+    "NOT_DISTANCE_TYPES",
+    "REFERENCE_CLIFF_BITS",
+    "SENSOR_SLOTS",
+    "SOURCE_CONF",
+    "SOURCE_CONF_ADV",
+    "BaseGeometry",
+    "Bumper",
+    "DistanceSensor",
+    "Mount",
+    "geometry_from_conf",
+    "geometry_from_tree",
+]
+
 SOURCE_CONF = "GET_BASE_CONF"
 SOURCE_CONF_ADV = "GET_BASE_CONF_ADV"
 BUMPER_BITS = 32

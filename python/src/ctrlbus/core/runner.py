@@ -20,6 +20,13 @@ from ctrlbus.core.session import CoreSession
 from ctrlbus.errors import CtrlbusError, LinkError
 from ctrlbus.link import Link
 
+__all__ = [
+    "READ_TIMEOUT_S",
+    "REOPEN_INTERVAL_S",
+    "STOP_GRACE_S",
+    "CoreRunner",
+]
+
 log = logging.getLogger("ctrlbus.core")
 
 READ_TIMEOUT_S = 0.02  # longest wait in one read: bounds how late poll() and stop() are seen

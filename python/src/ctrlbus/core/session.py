@@ -30,6 +30,15 @@ from dataclasses import dataclass
 from typing import Any
 
 from ctrlbus import binconf
+from ctrlbus.compat import StrEnum
+from ctrlbus.constants import (
+    MOTION_STALL,
+    MOTION_TRACTION_LOST,
+    POWER_CHARGING,
+    POWER_DC_CONNECTED,
+    POWER_ON_DOCK,
+)
+from ctrlbus.constants import WATCHDOG_TRIPPED_CODE as WATCHDOG_HEALTH_CODE
 from ctrlbus.core.actions import Action, DriveDistance, TurnAngle
 from ctrlbus.core.config import CoreConfig
 from ctrlbus.core.docking import GoHome
@@ -79,6 +88,23 @@ from ctrlbus.messages import (
     request_frame,
 )
 
+__all__ = [
+    "FLUSH_FILLER",
+    "MAX_EVENTS",
+    "MAX_TRAIL_POINTS",
+    "SCHEMA_VERSION",
+    "TRAIL_STEP_MM",
+    "TRANSPORT_ERRORS",
+    "BaseIdentity",
+    "CommandState",
+    "ConnectionState",
+    "CoreEvent",
+    "CoreSession",
+    "HealthError",
+    "HealthState",
+    "describe_request",
+]
+
 log = logging.getLogger("ctrlbus.core")
 
 SCHEMA_VERSION = 1
@@ -87,14 +113,11 @@ MAX_TRAIL_POINTS = 2000
 TRAIL_STEP_MM = 10.0
 # §11.1: the flushing SYNC is a long frame of exactly 512 bytes: 4 header bytes, 507 filler, checksum.
 FLUSH_FILLER = bytes(507)
-WATCHDOG_HEALTH_CODE = 0x01038000  # §10.3 "motor watchdog tripped"
 # Answers that say the request did not arrive intact (§11.6): a failed attempt, sent again.
 TRANSPORT_ERRORS = frozenset({ErrorCode.TOO_LONG, ErrorCode.CHECKSUM, ErrorCode.REFERENCE_CHECKSUM})
-POWER_CHARGING, POWER_DC_CONNECTED, POWER_ON_DOCK = 0x01, 0x02, 0x04
-MOTION_STALL, MOTION_TRACTION_LOST = 0x02, 0x04
 
 
-class ConnectionState(enum.StrEnum):
+class ConnectionState(StrEnum):
     CONNECTING = "connecting"  # looking for the base, before the first connection
     CONFIGURING = "configuring"  # connected, reading the configuration
     CONNECTED = "connected"  # polling

@@ -12,6 +12,13 @@ import math
 from collections import Counter, deque
 from dataclasses import dataclass, field
 
+__all__ = [
+    "LATENCY_SAMPLES",
+    "RATE_WINDOW_S",
+    "LinkStats",
+    "percentile",
+]
+
 RATE_WINDOW_S = 5.0  # requests_per_s counts the requests of the last few seconds
 LATENCY_SAMPLES = 500  # percentiles over the last few hundred answers
 

@@ -11,6 +11,14 @@ from typing import Any
 
 from ctrlbus.core.session import CoreSession
 
+__all__ = [
+    "SCREEN_EVENTS",
+    "SCREEN_HOME_CLEAR",
+    "json_status",
+    "render_screen",
+    "status_line",
+]
+
 # ANSI: cursor home, then clear to the end of the screen (redraw in place without scrolling).
 SCREEN_HOME_CLEAR = "\x1b[H\x1b[J"
 SCREEN_EVENTS = 8

@@ -16,6 +16,13 @@ from typing import Any
 from ctrlbus.errors import SimConfigError
 from ctrlbus.sim.geometry import Point
 
+__all__ = [
+    "ConfigReader",
+    "load_json_file",
+    "parse_json_text",
+    "unique_names",
+]
+
 _MISSING = object()
 
 

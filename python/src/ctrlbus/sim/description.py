@@ -17,6 +17,29 @@ from typing import Any, NamedTuple
 
 from ctrlbus.sim.config import ConfigReader, load_json_file, parse_json_text, unique_names
 
+__all__ = [
+    "DEFAULT_BASE_RESOURCE",
+    "DISTANCE_SENSOR_TYPES",
+    "MAX_BEACON_PROBES",
+    "MAX_BUMPERS",
+    "MAX_CLIFF_SENSORS",
+    "MAX_DISTANCE_SENSORS",
+    "MODEL_MAX_LENGTH",
+    "NO_ECHO_CHOICES",
+    "BaseDescription",
+    "BatterySpec",
+    "BeaconProbeSpec",
+    "BumperSpec",
+    "ChargingContactsSpec",
+    "CliffSensorSpec",
+    "DistanceSensorSpec",
+    "Mount",
+    "WheelSlipSpec",
+    "base_description_from_dict",
+    "default_base_description",
+    "load_base_description",
+]
+
 # What the wire can carry: GET_BASE_CONF has 8 sensor and 8 bumper slots, the reference bumper
 # bitmap keeps bits 2-5 for cliff sensors, and a GET_CHARGER_DATA probe byte has 8 beacon bits.
 MAX_DISTANCE_SENSORS = 8
@@ -158,7 +181,7 @@ DEFAULT_BASE_RESOURCE = "sim-base.json"
 
 def default_base_description() -> BaseDescription:
     """The packaged default robot (ctrlbus/data/sim-base.json)."""
-    text = resources.files("ctrlbus").joinpath("data", DEFAULT_BASE_RESOURCE).read_text(encoding="utf-8")
+    text = (resources.files("ctrlbus") / "data" / DEFAULT_BASE_RESOURCE).read_text(encoding="utf-8")
     source = f"<default {DEFAULT_BASE_RESOURCE}>"
     return base_description_from_dict(parse_json_text(text, source), source)
 

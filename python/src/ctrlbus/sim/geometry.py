@@ -6,6 +6,20 @@ from __future__ import annotations
 import itertools
 import math
 
+__all__ = [
+    "Point",
+    "Segment",
+    "angle_between_deg",
+    "angle_in_arc",
+    "closest_point_on_segment",
+    "distance_to_segment",
+    "line_of_sight",
+    "nearest_hit",
+    "point_in_polygon",
+    "polyline_segments",
+    "ray_hit_distance",
+]
+
 Point = tuple[float, float]
 Segment = tuple[Point, Point]
 

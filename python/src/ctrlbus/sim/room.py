@@ -16,6 +16,20 @@ from ctrlbus.kinematics import Pose, normalize_angle_deg, to_world
 from ctrlbus.sim.config import ConfigReader, load_json_file, parse_json_text, unique_names
 from ctrlbus.sim.geometry import Point, Segment, polyline_segments
 
+__all__ = [
+    "DEFAULT_ROOM_RESOURCE",
+    "MAX_BEACONS",
+    "MAX_SHAPES",
+    "BeaconSpec",
+    "CliffArea",
+    "DockSpec",
+    "Room",
+    "WallShape",
+    "default_room",
+    "load_room",
+    "room_from_dict",
+]
+
 MAX_BEACONS = 8  # one bit each in a GET_CHARGER_DATA probe byte
 MAX_SHAPES = 256
 
@@ -91,7 +105,7 @@ DEFAULT_ROOM_RESOURCE = "sim-room.json"
 
 def default_room() -> Room:
     """The packaged default room (ctrlbus/data/sim-room.json)."""
-    text = resources.files("ctrlbus").joinpath("data", DEFAULT_ROOM_RESOURCE).read_text(encoding="utf-8")
+    text = (resources.files("ctrlbus") / "data" / DEFAULT_ROOM_RESOURCE).read_text(encoding="utf-8")
     source = f"<default {DEFAULT_ROOM_RESOURCE}>"
     return room_from_dict(parse_json_text(text, source), source)
 

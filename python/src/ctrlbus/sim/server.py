@@ -17,7 +17,7 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
-from typing import Self
+from typing import TYPE_CHECKING
 
 from ctrlbus import binconf
 from ctrlbus.base import (
@@ -31,11 +31,15 @@ from ctrlbus.base import (
     parse_profile,
 )
 from ctrlbus.errors import BinaryConfigError, UsageError
-from ctrlbus.link import DEFAULT_BAUD, Link, PtyLink, TcpServerLink, serve_link
+from ctrlbus.link import DEFAULT_BAUD, Link, PtyLink, TcpServerLink
+from ctrlbus.ports import serve_link
 from ctrlbus.sim.base import SimulatedBase
 from ctrlbus.sim.description import load_base_description
 from ctrlbus.sim.room import load_room
 from ctrlbus.sim.world import World
+
+if TYPE_CHECKING:
+    from typing_extensions import Self  # typing.Self from Python 3.11; annotations only
 
 __all__ = ["SimServer", "SimSettings", "build_simulated_stack", "read_binary_config", "robot_limits"]
 

@@ -15,6 +15,13 @@ import random
 from collections import deque
 from typing import Any
 
+from ctrlbus.constants import (
+    MOTION_STALL,
+    MOTION_TRACTION_LOST,
+    POWER_CHARGING,
+    POWER_DC_CONNECTED,
+    POWER_ON_DOCK,
+)
 from ctrlbus.errors import SimConfigError, UsageError
 from ctrlbus.kinematics import (
     Pose,
@@ -37,6 +44,20 @@ from ctrlbus.sim.geometry import (
 )
 from ctrlbus.sim.room import Room, default_room
 
+__all__ = [
+    "BEACON_HOLD_S",
+    "BEACON_SAMPLE_PERIOD_S",
+    "BUMPER_TRAVEL_MM",
+    "HELD_BY_CLIFF",
+    "HELD_BY_WALL",
+    "MAX_SUBSTEP_S",
+    "RAYS_PER_BEAM",
+    "STALL_BLIND_S",
+    "TRAIL_LENGTH",
+    "TRAIL_STEP_MM",
+    "World",
+]
+
 MAX_SUBSTEP_S = 0.005  # one step(dt) is cut into pieces no longer than this
 BEACON_SAMPLE_PERIOD_S = 0.05  # how often the probes look for the dock's beacons
 BEACON_HOLD_S = 0.26  # a beacon bit expires this long after the beacon was last seen (reference)
@@ -47,11 +68,6 @@ TRAIL_STEP_MM = 20.0
 TRAIL_LENGTH = 2000
 
 # Power status bits of GET_BASE_STATUS and motion status bits of GET_BASE_MOTOR_DATA / 0x41.
-POWER_CHARGING = 0x01
-POWER_DC_CONNECTED = 0x02
-POWER_ON_DOCK = 0x04
-MOTION_STALL = 0x02
-MOTION_TRACTION_LOST = 0x04
 
 HELD_BY_WALL = "wall"
 HELD_BY_CLIFF = "cliff"

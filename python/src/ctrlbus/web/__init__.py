@@ -19,6 +19,10 @@ if TYPE_CHECKING:
     from ctrlbus.web.server import DashboardServer
     from ctrlbus.web.source import DashboardSource
 
+__all__ = [
+    "start_dashboard",
+]
+
 
 def start_dashboard(source: DashboardSource, options: DashboardOptions) -> DashboardServer:
     """Start serving the dashboard for `source`; UsageError if the web extra is missing."""

@@ -17,6 +17,25 @@ from typing import Any
 from ctrlbus.errors import UsageError
 from ctrlbus.messages import ExternalCommand as MessagesExternalCommand
 
+__all__ = [
+    "EXTERNAL_COMMANDS",
+    "EXTERNAL_COMMAND_BUTTONS",
+    "EXTERNAL_COMMAND_NAMES",
+    "MAX_ID_CHARS",
+    "MAX_MESSAGE_CHARS",
+    "MESSAGE_TYPES",
+    "ControlMessage",
+    "ControlMessageError",
+    "EmergencyStop",
+    "ExternalCommand",
+    "GoHome",
+    "MessageId",
+    "ReleaseStop",
+    "Velocity",
+    "clamp_velocity",
+    "parse_control_message",
+]
+
 # Longer than any valid message by a wide margin, short enough that parsing cost is trivial.
 MAX_MESSAGE_CHARS = 1024
 MAX_ID_CHARS = 64

@@ -16,6 +16,22 @@ from dataclasses import dataclass
 
 from ctrlbus.errors import UsageError
 
+__all__ = [
+    "DEFAULT_HTTP_HOST",
+    "DEFAULT_HTTP_PORT",
+    "DEFAULT_PUSH_HZ",
+    "DEFAULT_TELEOP_HOLD_S",
+    "GENERATE_TOKEN",
+    "MAX_PUSH_HZ",
+    "MIN_REMOTE_TOKEN_CHARS",
+    "TOKEN_ENV",
+    "DashboardOptions",
+    "check_token",
+    "generate_token",
+    "is_loopback",
+    "parse_http_address",
+]
+
 DEFAULT_HTTP_HOST = "127.0.0.1"
 DEFAULT_HTTP_PORT = 8080
 DEFAULT_PUSH_HZ = 15.0

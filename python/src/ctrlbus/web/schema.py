@@ -11,6 +11,21 @@ from __future__ import annotations
 import math
 from typing import Any
 
+__all__ = [
+    "COMMAND_MODES",
+    "CONNECTION_STATES",
+    "MAX_EVENTS",
+    "MAX_TRAIL_POINTS",
+    "MOUNT",
+    "POSE",
+    "SCHEMA_VERSION",
+    "SIM",
+    "SNAPSHOT",
+    "XY",
+    "Spec",
+    "check_snapshot",
+]
+
 SCHEMA_VERSION = 1
 
 # A spec is one of: a type name ("num", "int", "bool", "str"), a type name with "?" (may be

@@ -55,6 +55,18 @@ from ctrlbus.web.control import (
 from ctrlbus.web.options import DashboardOptions
 from ctrlbus.web.source import DashboardSource, accepts_external_commands
 
+__all__ = [
+    "LOOPBACK_NAMES",
+    "MAX_FRAME_BYTES",
+    "PUBLIC_PATHS",
+    "PUBLIC_PREFIXES",
+    "SECURITY_HEADERS",
+    "STATIC_DIR",
+    "DashboardServer",
+    "ServerCounters",
+    "start_dashboard",
+]
+
 log = logging.getLogger("ctrlbus.web")
 
 STATIC_DIR = Path(__file__).parent / "static"

@@ -12,6 +12,12 @@ from __future__ import annotations
 
 from typing import Any, Protocol, runtime_checkable
 
+__all__ = [
+    "DashboardSource",
+    "ExternalCommandSink",
+    "accepts_external_commands",
+]
+
 
 @runtime_checkable
 class DashboardSource(Protocol):
