@@ -92,14 +92,15 @@ def test_connect_then_fallback_from_conf_adv_to_conf_then_system_up() -> None:
 def test_binary_configuration_is_preferred_when_served() -> None:
     core, base, bus = start(FakeBase(blob=binconf.example_blob(), distances_mm=tuple(range(100, 1700, 100))))
     bus.run_for(0.5)
-    assert base.names()[:3] == ["CONNECT_BASE", "GET_BASE_CONF_ADV", "SEND_EVENT:0x63"]
-    assert "GET_BASE_CONF" not in base.names()
+    # The blob is used; GET_BASE_CONF is asked besides it only to show its view (§11.2).
+    assert base.names()[:4] == ["CONNECT_BASE", "GET_BASE_CONF_ADV", "GET_BASE_CONF", "SEND_EVENT:0x63"]
     snap = core.snapshot()
+    assert set(snap["base"]["views"]) == {"GET_BASE_CONF", "GET_BASE_CONF_ADV"}
     tree: Any = binconf.decode(binconf.example_blob())
     geometry = geometry_from_tree(tree)
     assert geometry is not None
     assert snap["base"]["config_source"] == "GET_BASE_CONF_ADV"
-    assert snap["base"]["radius_mm"] == pytest.approx(1000.0 * tree["base"]["robot_size"])
+    assert snap["base"]["radius_mm"] == pytest.approx(1000.0 * tree["base"]["robot_size"] / 2)  # a diameter
     # Each distance sensor's reading is taken from its slot (its id in the tree).
     distances = core.distances_mm
     assert distances is not None
@@ -304,9 +305,11 @@ def test_malformed_answer_is_retried_and_a_persistent_one_disconnects() -> None:
     base.raw_ok["GET_BASE_STATUS"] = b"\x50"  # 1 byte: the 2015 form, a format error (§5.4)
     assert bus.run_until(lambda: core.link_stats()["disconnects"] >= 1, 2.0)
     stats = core.link_stats()
-    # Each connection asks for the status at once, tries 3 times and gives up; then it reconnects.
-    assert stats["malformed_answers"] == 3 * stats["disconnects"]
-    assert stats["retries"] == 2 * stats["disconnects"]
+    # A base that answers every attempt is there: the status is asked again and again (each
+    # connection asks it at once), until line_fault_attempts faulty answers make the Core give up.
+    attempts = CoreConfig().line_fault_attempts
+    assert stats["malformed_answers"] == attempts * stats["disconnects"]
+    assert stats["lost_requests"] == 0
     assert any("malformed answer to GET_BASE_STATUS" in event.text for event in core.events())
 
 
@@ -358,9 +361,14 @@ def test_reconnect_after_the_base_goes_silent() -> None:
     base.silent = True
     assert bus.run_until(lambda: core.state == "disconnected", 2.0)
     heard = names_after(base, silent_at)
-    # The request in flight is sent 3 times, then CORE_DISCONNECT, then the connect loop.
+    # Three attempts in a row go unanswered (a periodic request whose next period has come is
+    # superseded by it rather than resent), then CORE_DISCONNECT, then the connect loop.
     notice = heard.index("SEND_EVENT:0x65")
-    assert heard[notice - 3 : notice] == [heard[notice - 1]] * 3
+    assert notice == 3
+    stats = core.link_stats()
+    assert stats["timeouts"] == 3
+    assert stats["superseded"] + stats["retries"] == 2
+    assert stats["abandoned_at_disconnect"] == 1 and stats["lost_requests"] == 0
     bus.run_for(1.0)
     heard = names_after(base, silent_at)
     assert heard[notice + 1] == "CONNECT_BASE"

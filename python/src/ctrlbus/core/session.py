@@ -33,7 +33,14 @@ from ctrlbus import binconf
 from ctrlbus.core.actions import Action, DriveDistance, TurnAngle
 from ctrlbus.core.config import CoreConfig
 from ctrlbus.core.docking import GoHome
-from ctrlbus.core.geometry import BaseGeometry, geometry_from_conf, geometry_from_tree
+from ctrlbus.core.geometry import (
+    SOURCE_CONF_ADV,
+    BaseGeometry,
+    compare_geometries,
+    geometry_from_conf,
+    geometry_from_tree,
+    geometry_view,
+)
 from ctrlbus.core.stats import LinkStats
 from ctrlbus.errors import BinaryConfigError, MessageError, UsageError
 from ctrlbus.frame import Frame, StreamDecoder
@@ -88,8 +95,11 @@ TRAIL_STEP_MM = 10.0
 # §11.1: the flushing SYNC is a long frame of exactly 512 bytes: 4 header bytes, 507 filler, checksum.
 FLUSH_FILLER = bytes(507)
 WATCHDOG_HEALTH_CODE = 0x01038000  # §10.3 "motor watchdog tripped"
-# Answers that say the request did not arrive intact (§11.6): a failed attempt, sent again.
-TRANSPORT_ERRORS = frozenset({ErrorCode.TOO_LONG, ErrorCode.CHECKSUM, ErrorCode.REFERENCE_CHECKSUM})
+# §11.6 [line-faults]: every ERROR code below this is the base's receiver state (bits 0x10 not
+# synchronised, 0x20 too long, 0x40 checksum, 0x80 a frame was ready, ORed by the reference), never
+# the answer to the request: the request is sent again.
+LINE_FAULT_LIMIT = 0x0100
+LINE_FAULT_BITS = (0x10, 0x20, 0x40, 0x80)
 POWER_CHARGING, POWER_DC_CONNECTED, POWER_ON_DOCK = 0x01, 0x02, 0x04
 MOTION_STALL, MOTION_TRACTION_LOST = 0x02, 0x04
 
@@ -134,6 +144,8 @@ class _Outstanding:
     resend: bool = False  # a failed attempt: send again at the next poll()
     transport_error: str | None = None  # a line-fault ERROR seen; the real answer may still follow
     schedule_name: str | None = None
+    silent_attempts: int = 0  # attempts that got nothing back from the base
+    faulty_attempts: int = 0  # attempts answered by a line fault, INVALID or a malformed answer
 
 
 @dataclass(frozen=True)
@@ -203,6 +215,8 @@ _SCHEDULE: tuple[tuple[str, RequestMessage | None, str], ...] = (
     ("charger", GetChargerData(0), "charger_hz"),
 )
 _DOCKING_ONLY = frozenset({"charger"})
+# Requests whose fate is accounted (answered, superseded, abandoned at a disconnect, or lost).
+_TRACKED_PURPOSES = frozenset({_Purpose.CONFIG_ADV, _Purpose.CONFIG, _Purpose.SYSTEM_UP, _Purpose.POLL})
 
 
 def _command_name(code: int) -> str:
@@ -269,11 +283,14 @@ class CoreSession:
         self._health_collect: list[HealthError | None] | None = None
         self._health_flags_pending: int | None = None
         self._last_error_logged: dict[str, int] = {}
+        self._silent_streak = 0  # silent attempts in a row, whatever the request
         # Telemetry.
         self._identity: BaseIdentity | None = None
         self._geometry: BaseGeometry | None = None
         self._configured = False
         self._config_source: str | None = None
+        # §11.2: each source's geometry, where known (the Core uses the blob's when it has one).
+        self._views: dict[str, BaseGeometry] = {}
         self._pose = Pose(0.0, 0.0, 0.0)
         self._trail: deque[tuple[float, float]] = deque([(0.0, 0.0)], maxlen=MAX_TRAIL_POINTS)
         self._deadreckon_timestamp_ms: int | None = None
@@ -366,7 +383,7 @@ class CoreSession:
         """The runner could not read or write the link: the connection is gone."""
         with self._lock:
             self._advance(now)
-            self._outstanding = None
+            self._abandon_outstanding()
             if self._step is _Step.STOPPED:
                 pass
             elif self._stop_requested:
@@ -716,6 +733,8 @@ class CoreSession:
             resend=True,
         )
         self._outstanding = outstanding
+        if purpose in _TRACKED_PURPOSES:
+            self._stats.tracked_requests += 1
         return outstanding
 
     def _send(self, outstanding: _Outstanding, now: float) -> bytes:
@@ -754,20 +773,50 @@ class CoreSession:
                 self._schedule_next_connect(now)
             return
         if outstanding.transport_error is not None:
-            self._failed_attempt(outstanding, outstanding.transport_error, now)
+            self._failed_attempt(outstanding, outstanding.transport_error, now, silent=False)
             return
         self._stats.timeouts += 1
-        self._failed_attempt(outstanding, f"no answer to {describe_request(outstanding.message)}", now)
+        self._failed_attempt(outstanding, f"no answer to {describe_request(outstanding.message)}", now, silent=True)
 
-    def _failed_attempt(self, outstanding: _Outstanding, reason: str, now: float) -> None:
-        """An attempt failed (timeout, transport error, INVALID, malformed answer)."""
+    def _failed_attempt(self, outstanding: _Outstanding, reason: str, now: float, *, silent: bool) -> None:
+        """An attempt failed: `silent` (a timeout) or answered by a line fault, INVALID or a
+        malformed answer (§11.6). Resent until answered; a periodic request whose next period has
+        come is superseded by it instead; the base counts as disconnected after `1 + retries`
+        silent attempts in a row, or `line_fault_attempts` faulty attempts of one request."""
+        if silent:
+            outstanding.silent_attempts += 1
+            self._silent_streak += 1
+        else:
+            outstanding.faulty_attempts += 1
+        purpose = outstanding.purpose
+        one_shot = outstanding.max_attempts <= 1
+        if purpose in _TRACKED_PURPOSES and not one_shot:
+            too_silent = self._silent_streak >= 1 + self.config.retries
+            too_faulty = outstanding.faulty_attempts >= self.config.line_fault_attempts
+            if not too_silent and not too_faulty:
+                name = outstanding.schedule_name
+                if name is not None and self._next_due.get(name, now) <= now:
+                    self._outstanding = None
+                    self._stats.superseded += 1  # its next period is due: the fresh one goes instead
+                    return
+                outstanding.resend = True
+                self._log("core", f"{reason} (attempt {outstanding.attempts}): sending again")
+                return
+            self._outstanding = None
+            self._stats.disconnects += 1
+            self._stats.abandoned_at_disconnect += 1
+            what = f"{self._silent_streak} attempts in a row unanswered" if too_silent else (
+                f"{outstanding.faulty_attempts} attempts hit by line faults"
+            )
+            self._log("core", f"{reason}: {what}, base disconnected")
+            self._drop_connection(reason, now, notify_base=True)
+            return
         if outstanding.attempts < outstanding.max_attempts:
             outstanding.resend = True
             attempt = f"attempt {outstanding.attempts}/{outstanding.max_attempts}"
             self._log("core", f"{reason} ({attempt}): sending again")
             return
         self._outstanding = None
-        purpose = outstanding.purpose
         if purpose is _Purpose.STOP or self._stop_requested:
             self._finish_stop()
         elif purpose is _Purpose.NOTICE:
@@ -775,9 +824,9 @@ class CoreSession:
         elif purpose is _Purpose.CONNECT:
             self._schedule_next_connect(now)
         else:
-            self._stats.disconnects += 1
-            self._log("core", f"{reason}: {outstanding.max_attempts} attempts failed, base disconnected")
-            self._drop_connection(reason, now, notify_base=True)
+            # A request that matters given up while the base still counts as connected.
+            self._stats.lost_requests += 1
+            self._log("core", f"{reason}: {describe_request(outstanding.message)} given up (lost)")
 
     def _drop_connection(self, reason: str, now: float, *, notify_base: bool) -> None:
         self._set_state(ConnectionState.DISCONNECTED, now, reason)
@@ -804,8 +853,15 @@ class CoreSession:
     def _connected_to_base(self) -> bool:
         return self._state in (ConnectionState.CONNECTED, ConnectionState.CONFIGURING)
 
-    def _finish_stop(self) -> None:
+    def _abandon_outstanding(self) -> None:
+        """The connection ends with a request in flight (the link failed, or the Core stops)."""
+        outstanding = self._outstanding
         self._outstanding = None
+        if outstanding is not None and outstanding.purpose in _TRACKED_PURPOSES:
+            self._stats.abandoned_at_disconnect += 1
+
+    def _finish_stop(self) -> None:
+        self._abandon_outstanding()
         self._step = _Step.STOPPED
         self._set_state(ConnectionState.DISCONNECTED, self._now, "stopped")
         self._log("core", "stopped")
@@ -831,38 +887,44 @@ class CoreSession:
         if request.CMD == Cmd.CTRL_BUS and frame.cmd in (Response.SYNC, Response.ECHO):
             self._stats.stray_answers += 1  # a copy of an earlier SYNC or ECHO, not this answer
             return
+        self._silent_streak = 0  # whatever it is, the base is there
         try:
             answer = decode_answer(request, frame.cmd, frame.payload)
         except MessageError as exc:
             self._stats.malformed_answers += 1
             self._stats.count_answer(now - outstanding.sent_at)
             self._log("base", f"malformed answer to {request.NAME}: {exc}")
-            self._failed_attempt(outstanding, f"malformed answer to {request.NAME}", now)
+            self._failed_attempt(outstanding, f"malformed answer to {request.NAME}", now, silent=False)
             return
         if isinstance(answer, ErrorAnswer):
             code = answer.error_code
             self._stats.errors_by_code[code] += 1
+            if code < LINE_FAULT_LIMIT:
+                self._stats.count_line_fault(code)
             if code == ErrorCode.NOT_SYNCED:
                 self._stats.not_synced_reports += 1  # about stray bytes; the answer may follow
                 return
-            self._stats.count_answer(now - outstanding.sent_at)
-            if code in TRANSPORT_ERRORS:
-                # The base answers in stream order: garbage in front of an intact request gives
-                # this error first and the real answer right after it. Resending at once would
-                # put every later answer one step out of order, so wait a moment (§11.6).
+            if code < LINE_FAULT_LIMIT:
+                # A line fault (§11.6 [line-faults]): the request, or a false frame start in noise
+                # just before it, did not arrive intact. The base answers in stream order, so an
+                # intact request's answer would follow at once: wait a moment for it, then send
+                # again (resending at once would put every later answer one step out of order).
                 self._log_error(request, code)
                 outstanding.transport_error = f"ERROR 0x{code:04X} to {request.NAME}"
                 outstanding.deadline = min(outstanding.deadline, now + self.config.transport_error_grace_s)
                 return
+            self._stats.count_answer(now - outstanding.sent_at)
         elif isinstance(answer, InvalidAnswer):
             self._stats.invalid_answers += 1
             self._stats.count_answer(now - outstanding.sent_at)
             self._log("base", f"INVALID to {request.NAME}")
-            self._failed_attempt(outstanding, f"INVALID to {request.NAME}", now)
+            self._failed_attempt(outstanding, f"INVALID to {request.NAME}", now, silent=False)
             return
         else:
             self._stats.count_answer(now - outstanding.sent_at)
         self._outstanding = None
+        if outstanding.purpose in _TRACKED_PURPOSES:
+            self._stats.answered_requests += 1
         self._on_answer(outstanding, answer, now)
 
     def _log_error(self, request: RequestMessage, code: int) -> None:
@@ -887,8 +949,12 @@ class CoreSession:
         elif purpose is _Purpose.CONFIG_ADV:
             self._on_config_adv(answer)
         elif purpose is _Purpose.CONFIG:
-            if isinstance(answer, GetBaseConfAnswer):
+            if isinstance(answer, GetBaseConfAnswer) and self._configured:
+                self._note_second_view(geometry_from_conf(answer))  # asked besides a usable blob
+            elif isinstance(answer, GetBaseConfAnswer):
                 self._use_geometry(geometry_from_conf(answer))
+            elif self._configured:
+                pass  # no GET_BASE_CONF besides the blob: only one view
             else:
                 self._log("core", "no configuration from the base: going on without its geometry")
                 self._use_geometry(None)
@@ -932,11 +998,20 @@ class CoreSession:
                 return
             self._log("base", f"binary configuration: {len(answer.blob)} bytes")
             self._use_geometry(geometry)
-            self._step = _Step.SYSTEM_UP
+            self._step = _Step.CONFIG if self.config.read_both_configs else _Step.SYSTEM_UP
             return
         self._step = _Step.CONFIG  # ERROR 0x8000 (no blob), or any other refusal
 
+    def _note_second_view(self, conf: BaseGeometry) -> None:
+        self._views[conf.source] = conf
+        adv = self._views.get(SOURCE_CONF_ADV)
+        if adv is not None:
+            for problem in compare_geometries(adv, conf):
+                self._log("core", f"the two configurations disagree: {problem}")
+        self._changed.add("base")
+
     def _use_geometry(self, geometry: BaseGeometry | None) -> None:
+        self._views = {} if geometry is None else {geometry.source: geometry}
         self._geometry = geometry
         self._config_source = None if geometry is None else geometry.source
         self._configured = True
@@ -1177,7 +1252,13 @@ class CoreSession:
             "timeouts": stats.timeouts,
             "watchdog_trips": stats.watchdog_trips,
             "retries": stats.retries,
+            "lost_requests": stats.lost_requests,
+            "superseded": stats.superseded,
+            "line_faults_by_bit": {f"0x{bit:02X}": stats.line_fault_bits[bit] for bit in LINE_FAULT_BITS},
             # Beyond the dashboard schema:
+            "requests_tracked": stats.tracked_requests,
+            "requests_answered": stats.answered_requests,
+            "abandoned_at_disconnect": stats.abandoned_at_disconnect,
             "answers": stats.answers,
             "connect_attempts": stats.connect_attempts,
             "disconnects": stats.disconnects,
@@ -1213,6 +1294,7 @@ class CoreSession:
                 "shape": "circle" if geometry is None else geometry.shape,
                 "radius_mm": 0.0 if geometry is None else geometry.radius_mm,
                 "config_source": self._config_source or "GET_BASE_CONF",
+                "views": {source: geometry_view(view) for source, view in self._views.items()},
             }
         max_vx, max_omega = self.limits()
         command = self._command_state()
@@ -1247,6 +1329,9 @@ class CoreSession:
             "timeouts",
             "watchdog_trips",
             "retries",
+            "lost_requests",
+            "superseded",
+            "line_faults_by_bit",
         )
         return {
             "schema": SCHEMA_VERSION,

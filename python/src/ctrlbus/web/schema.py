@@ -108,6 +108,10 @@ SNAPSHOT: Spec = {
             "shape": ("enum", ("circle", "square")),
             "radius_mm": "num",
             "config_source": ("enum", ("GET_BASE_CONF", "GET_BASE_CONF_ADV")),
+            "views?": (
+                "map",
+                {"radius_mm": "num", "distance_sensors": "int", "bumpers": "int", "cliffs": "int"},
+            ),
         },
     ),
     "limits": {"vx_mps": "num", "omega_radps": "num"},
@@ -161,6 +165,9 @@ SNAPSHOT: Spec = {
         "timeouts": "int",
         "watchdog_trips": "int",
         "retries": "int",
+        "lost_requests?": "int",
+        "superseded?": "int",
+        "line_faults_by_bit?": ("map", "int"),
     },
     "sim?": SIM,
 }
