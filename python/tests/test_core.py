@@ -332,7 +332,9 @@ def test_lost_answer_times_out_and_is_sent_again() -> None:
     stats = core.link_stats()
     assert stats["timeouts"] == 1 and stats["retries"] == 1 and stats["disconnects"] == 0
     statuses = [when for when, request in base.requests if request.NAME == "GET_BASE_STATUS"]
-    assert statuses[1] - statuses[0] == pytest.approx(0.2 + 5 * 86.8e-6 + 0.0, abs=0.006)
+    # The timeout, then a flushing SYNC (512 bytes out, copied back) before the resend (§11.6).
+    assert any(size == 512 and statuses[0] < when < statuses[1] for when, size in base.syncs)
+    assert statuses[1] - statuses[0] == pytest.approx(0.2 + 5 * 86.8e-6 + 2 * 512 * 86.8e-6, abs=0.006)
 
 
 def test_requests_in_long_frames_in_the_sdk2020_profile() -> None:

@@ -284,6 +284,10 @@ class CoreSession:
         self._health_flags_pending: int | None = None
         self._last_error_logged: dict[str, int] = {}
         self._silent_streak = 0  # silent attempts in a row, whatever the request
+        # §11.6: after the first silent attempt, a flushing SYNC goes before the next request, and
+        # the request waits (held) until the flush is over.
+        self._flush_pending = False
+        self._held: _Outstanding | None = None
         # Telemetry.
         self._identity: BaseIdentity | None = None
         self._geometry: BaseGeometry | None = None
@@ -635,6 +639,12 @@ class CoreSession:
     def _poll_locked(self, now: float) -> bytes | None:
         self._expire(now)
         outstanding = self._outstanding
+        if self._flush_pending and (outstanding is None or outstanding.resend) and self._connected_to_base():
+            # A reference base has no inter-byte timeout: a false frame start in noise may be
+            # swallowing every request; 512 bytes complete whatever it waits for (§11.6).
+            self._flush_pending = False
+            self._held = outstanding
+            return self._start(Sync(FLUSH_FILLER), _Purpose.FLUSH, now, attempts=1, quiet=True)
         if outstanding is not None:
             if outstanding.resend:
                 return self._send(outstanding, now)
@@ -762,8 +772,7 @@ class CoreSession:
             return
         purpose = outstanding.purpose
         if purpose is _Purpose.FLUSH:
-            self._outstanding = None
-            self._schedule_next_connect(now)
+            self._end_flush(now)
             return
         if purpose is _Purpose.CONNECT:
             self._outstanding = None
@@ -778,6 +787,14 @@ class CoreSession:
         self._stats.timeouts += 1
         self._failed_attempt(outstanding, f"no answer to {describe_request(outstanding.message)}", now, silent=True)
 
+    def _end_flush(self, now: float) -> None:
+        """The flushing SYNC's window is over: go on with the held request, or the connect loop."""
+        self._outstanding = None
+        if self._step is _Step.CONNECT:
+            self._schedule_next_connect(now)
+        else:
+            self._outstanding, self._held = self._held, None
+
     def _failed_attempt(self, outstanding: _Outstanding, reason: str, now: float, *, silent: bool) -> None:
         """An attempt failed: `silent` (a timeout) or answered by a line fault, INVALID or a
         malformed answer (§11.6). Resent until answered; a periodic request whose next period has
@@ -786,6 +803,7 @@ class CoreSession:
         if silent:
             outstanding.silent_attempts += 1
             self._silent_streak += 1
+            self._flush_pending = self.config.flush_sync
         else:
             outstanding.faulty_attempts += 1
         purpose = outstanding.purpose
@@ -829,6 +847,7 @@ class CoreSession:
             self._log("core", f"{reason}: {describe_request(outstanding.message)} given up (lost)")
 
     def _drop_connection(self, reason: str, now: float, *, notify_base: bool) -> None:
+        self._abandon_outstanding()
         self._set_state(ConnectionState.DISCONNECTED, now, reason)
         self._cancel_action("cancelled: the base is disconnected")
         self._vx = self._omega = 0.0
@@ -855,10 +874,11 @@ class CoreSession:
 
     def _abandon_outstanding(self) -> None:
         """The connection ends with a request in flight (the link failed, or the Core stops)."""
-        outstanding = self._outstanding
-        self._outstanding = None
-        if outstanding is not None and outstanding.purpose in _TRACKED_PURPOSES:
-            self._stats.abandoned_at_disconnect += 1
+        for outstanding in (self._outstanding, self._held):
+            if outstanding is not None and outstanding.purpose in _TRACKED_PURPOSES:
+                self._stats.abandoned_at_disconnect += 1
+        self._outstanding = self._held = None
+        self._flush_pending = False
 
     def _finish_stop(self) -> None:
         self._abandon_outstanding()
@@ -882,6 +902,14 @@ class CoreSession:
             return
         if outstanding.purpose is _Purpose.FLUSH:
             self._stats.flushed_frames += 1
+            if self._step is not _Step.CONNECT:
+                if frame.cmd == Response.SYNC and frame.raw == outstanding.frame:
+                    self._end_flush(now)  # the base copied the flush back: nothing more is coming
+                else:
+                    # The base answers in stream order: what it says about the flush (or the
+                    # frame the flush completed) comes now, the rest follows within the grace.
+                    grace = now + self.config.transport_error_grace_s
+                    outstanding.deadline = min(outstanding.deadline, grace)
             return
         request = outstanding.message
         if request.CMD == Cmd.CTRL_BUS and frame.cmd in (Response.SYNC, Response.ECHO):
