@@ -490,11 +490,14 @@ def run_quirks(spec_text: str, exchanges: int, seed: int = SEED) -> dict[str, An
     wall_s = time.perf_counter() - started
     link = core.link_stats()
     in_flight = link["requests_tracked"] - (
-        link["requests_answered"] + link["superseded"] + link["abandoned_at_disconnect"] + link["lost_requests"]
+        link["requests_answered"]
+        + link["superseded"]
+        + link["abandoned_at_disconnect"]
+        + link["lost_requests"]
     )
     if in_flight not in (0, 1):  # at most the request in flight when the run stopped
         raise BenchError(f"the Core's request accounting does not add up: {in_flight} requests unaccounted")
-    receiver = stack._reference_rx  # noqa: SLF001  (the quirks model's own counters)
+    receiver = stack._reference_rx
     return {
         "spec": str(spec),
         "seed": seed,
@@ -879,7 +882,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     import json
 
     parser = argparse.ArgumentParser(description=main.__doc__)
-    parser.add_argument("--quirks", action="store_true", help="run against the reference-quirks simulated base")
+    parser.add_argument(
+        "--quirks", action="store_true", help="run against the reference-quirks simulated base"
+    )
     parser.add_argument("--exchanges", type=int, default=QUIRKS_EXCHANGES[FULL])
     parser.add_argument("--spec", default=QUIRKS_SPEC)
     parser.add_argument("--seed", type=int, default=SEED)

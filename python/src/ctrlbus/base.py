@@ -39,7 +39,6 @@ from ctrlbus.errors import (
 from ctrlbus.frame import DecoderEvent, DecoderStats, EventKind, Frame, StreamDecoder
 from ctrlbus.kinematics import wheel_speeds_from_velocity
 from ctrlbus.link import Link
-from ctrlbus.quirks import STARTUP_BATTERY_S, Quirks, ReferenceReceiver, parse_quirks
 from ctrlbus.messages import (
     AnswerMessage,
     BaseCommand,
@@ -82,6 +81,7 @@ from ctrlbus.messages import (
     answer_frame,
     decode_request,
 )
+from ctrlbus.quirks import STARTUP_BATTERY_S, Quirks, ReferenceReceiver, parse_quirks
 
 __all__ = [
     "COMPONENT_MOTION",

@@ -168,7 +168,7 @@ class ReferenceReceiver:
         if self._booting(at):
             self._ready = frame  # the loop is not running yet: only the last one survives
             return
-        if self._bits & _ERROR_BITS or at < self._busy_until and self._reporting:
+        if self._bits & _ERROR_BITS or (at < self._busy_until and self._reporting):
             self.dropped_frames += 1
             self._ready = None
             self._raise(NOT_SYNCED_BIT | FRAME_READY_BIT, at)
@@ -207,4 +207,3 @@ class ReferenceReceiver:
                 continue
             out += answer
             self._busy_until = start + len(answer) * self.byte_time_s
-

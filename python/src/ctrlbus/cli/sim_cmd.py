@@ -4,6 +4,7 @@
     ctrlbus sim --pty | --listen HOST:PORT | --port URL [--config FILE] [--room FILE]
                 [--binary-config FILE] [--profile reference|sdk2020] [--time-scale X] [--seed N]
                 [--watchdog-ms N] [--frame-timeout-ms N] [--reference-checksum]
+                [--quirks none|reference]
 
 Prints where it serves on stdout as one line (`pty: /dev/pts/N`, `listen: HOST:PORT` or
 `port: URL`), then answers the Core until Ctrl-C or SIGTERM (exit 0).
@@ -19,6 +20,7 @@ from typing import Any
 from ctrlbus.base import DEFAULT_FRAME_TIMEOUT_S, DEFAULT_WATCHDOG_S, serve
 from ctrlbus.cli.common import add_serve_arguments, stop_on_signals
 from ctrlbus.errors import UsageError
+from ctrlbus.quirks import parse_quirks
 from ctrlbus.sim.server import MAX_TIME_SCALE, SimServer, SimSettings
 
 MAX_FRAME_TIMEOUT_MS = 60_000  # as posix_base's --frame-timeout-ms
@@ -81,6 +83,15 @@ def register(subparsers: Any) -> None:
         action="store_true",
         help="answer checksum errors with 0x00C0 as the reference firmware does (default 0x0040)",
     )
+    parser.add_argument(
+        "--quirks",
+        default="none",
+        metavar="MODE",
+        help="reference: behave as the reference firmware was seen to (combined error bits, 0x00C0, "
+        "requests dropped behind garbage reports, LEN=0 re-running the previous request, no "
+        "inter-byte timeout, 1.9 s of silence and a low battery at power-on; docs/simulator.md); "
+        "none (default): the documented ctrlbus behaviour",
+    )
     parser.set_defaults(func=run)
 
 
@@ -123,6 +134,7 @@ def settings_from_args(args: argparse.Namespace) -> SimSettings:
         watchdog_s=watchdog_ms / 1000.0 if watchdog_ms > 0 else None,
         frame_timeout_s=frame_timeout_ms / 1000.0,
         reference_checksum_code=args.reference_checksum,
+        quirks=parse_quirks(args.quirks),
     )
 
 

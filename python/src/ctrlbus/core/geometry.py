@@ -198,7 +198,8 @@ def compare_geometries(adv: BaseGeometry, conf: BaseGeometry) -> list[str]:
     problems: list[str] = []
     if abs(adv.radius_mm - conf.radius_mm) > RADIUS_TOLERANCE_MM:
         problems.append(
-            f"radius: the blob's robot_size/2 is {adv.radius_mm:.0f} mm, GET_BASE_CONF says {conf.radius_mm:.0f} mm"
+            f"radius: the blob's robot_size/2 is {adv.radius_mm:.0f} mm, "
+            f"GET_BASE_CONF says {conf.radius_mm:.0f} mm"
         )
     adv_slots = {sensor.slot: sensor.mount for sensor in adv.sensors}
     conf_slots = {sensor.slot: sensor.mount for sensor in conf.sensors}
@@ -215,7 +216,8 @@ def compare_geometries(adv: BaseGeometry, conf: BaseGeometry) -> list[str]:
             or _angle_apart(a.angle_deg, c.angle_deg) > ANGLE_TOLERANCE_DEG
         ):
             problems.append(
-                f"distance sensor {slot}: the blob puts it at {_mount_text(a)}, GET_BASE_CONF at {_mount_text(c)}"
+                f"distance sensor {slot}: the blob puts it at {_mount_text(a)}, "
+                f"GET_BASE_CONF at {_mount_text(c)}"
             )
     if len(adv.bumpers) != len(conf.bumpers):
         problems.append(f"bumpers: the blob lists {len(adv.bumpers)}, GET_BASE_CONF {len(conf.bumpers)}")

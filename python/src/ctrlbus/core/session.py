@@ -785,7 +785,9 @@ class CoreSession:
             self._failed_attempt(outstanding, outstanding.transport_error, now, silent=False)
             return
         self._stats.timeouts += 1
-        self._failed_attempt(outstanding, f"no answer to {describe_request(outstanding.message)}", now, silent=True)
+        self._failed_attempt(
+            outstanding, f"no answer to {describe_request(outstanding.message)}", now, silent=True
+        )
 
     def _end_flush(self, now: float) -> None:
         """The flushing SYNC's window is over: go on with the held request, or the connect loop."""
@@ -823,8 +825,10 @@ class CoreSession:
             self._outstanding = None
             self._stats.disconnects += 1
             self._stats.abandoned_at_disconnect += 1
-            what = f"{self._silent_streak} attempts in a row unanswered" if too_silent else (
-                f"{outstanding.faulty_attempts} attempts hit by line faults"
+            what = (
+                f"{self._silent_streak} attempts in a row unanswered"
+                if too_silent
+                else (f"{outstanding.faulty_attempts} attempts hit by line faults")
             )
             self._log("core", f"{reason}: {what}, base disconnected")
             self._drop_connection(reason, now, notify_base=True)

@@ -31,6 +31,7 @@ from ctrlbus.base import (
 )
 from ctrlbus.errors import BinaryConfigError, UsageError
 from ctrlbus.link import DEFAULT_BAUD, Link, PtyLink, TcpServerLink, serve_link
+from ctrlbus.quirks import Quirks, parse_quirks
 from ctrlbus.sim.base import SimulatedBase
 from ctrlbus.sim.description import load_base_description
 from ctrlbus.sim.room import load_room
@@ -54,6 +55,7 @@ class SimSettings:
     watchdog_s: float | None = DEFAULT_WATCHDOG_S
     frame_timeout_s: float = DEFAULT_FRAME_TIMEOUT_S  # inter-byte timeout; 0 switches it off
     reference_checksum_code: bool = False
+    quirks: Quirks | str = Quirks.NONE  # "reference": imitate the reference firmware (ctrlbus.quirks)
 
 
 def read_binary_config(path: str | Path) -> bytes:
@@ -81,6 +83,7 @@ def build_simulated_stack(settings: SimSettings) -> tuple[SimulatedBase, BaseSta
         watchdog_s=settings.watchdog_s,
         frame_timeout_s=settings.frame_timeout_s,
         reference_checksum_code=settings.reference_checksum_code,
+        quirks=parse_quirks(settings.quirks),
     )
     blob = None if settings.binary_config is None else read_binary_config(settings.binary_config)
     world = World(load_base_description(settings.config), load_room(settings.room), seed=settings.seed)
