@@ -14,6 +14,7 @@ import pytest
 from ctrlbus import binconf
 from ctrlbus.base import REFERENCE_LOW_BATTERY_CODE, BaseConfig, BaseStack
 from ctrlbus.core import CoreSession
+from ctrlbus.errors import UsageError
 from ctrlbus.faults import FaultFilter, FaultSpec, fault_models
 from ctrlbus.frame import Frame, StreamDecoder, encode
 from ctrlbus.messages import SetVAndGetDeadreckonAnswer
@@ -22,7 +23,6 @@ from ctrlbus.sim.base import SimulatedBase
 from ctrlbus.sim.description import default_base_description
 from ctrlbus.sim.world import World
 from ctrlbus.vtime import VirtualBus
-from ctrlbus.errors import UsageError
 
 STATUS = bytes.fromhex("10 02 F8 30 DA")
 STATUS_ANSWER_CMD_OK = 0x02
@@ -54,9 +54,7 @@ def frames(data: bytes) -> list[Frame]:
 
 def error_codes(data: bytes) -> list[int | None]:
     """Each answer frame: its ERROR code, or None for any other answer."""
-    return [
-        struct.unpack("<H", frame.payload)[0] if frame.cmd == ERROR else None for frame in frames(data)
-    ]
+    return [struct.unpack("<H", frame.payload)[0] if frame.cmd == ERROR else None for frame in frames(data)]
 
 
 def booted_stack(blob: bytes | None = None) -> tuple[BaseStack, RecordingSim]:
