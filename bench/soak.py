@@ -59,6 +59,7 @@ from ctrlbus.faults import Delivery, FaultFilter, FaultSpec, FaultyLink, fault_m
 from ctrlbus.frame import Frame, StreamDecoder  # noqa: E402
 from ctrlbus.link import Link, open_link  # noqa: E402
 from ctrlbus.messages import SetVAndGetDeadreckonAnswer  # noqa: E402
+from ctrlbus.quirks import Quirks  # noqa: E402
 from ctrlbus.sim.base import SimulatedBase  # noqa: E402
 from ctrlbus.sim.world import World  # noqa: E402
 from ctrlbus.vtime import VirtualBus  # noqa: E402
@@ -473,7 +474,7 @@ def run_quirks(spec_text: str, exchanges: int, seed: int = SEED) -> dict[str, An
     spec = FaultSpec.parse(spec_text)
     world = World(seed=seed)
     limits = VelocityLimits(**BASE_LIMITS, wheel_track_mm=world.base.wheel_track_mm)
-    stack = BaseStack(SimulatedBase(world), BaseConfig(limits=limits, quirks="reference"))
+    stack = BaseStack(SimulatedBase(world), BaseConfig(limits=limits, quirks=Quirks.REFERENCE))
     core = SoakCore(CORE_CONFIG)
     to_base_model, to_core_model = fault_models(spec, seed, origin=0.0)
     bus = VirtualBus(core, stack, to_base=FaultFilter(to_base_model), to_core=FaultFilter(to_core_model))

@@ -45,7 +45,7 @@ class RecordingSim(SimulatedBase):
 
 def quirky(blob: bytes | None = None) -> tuple[BaseStack, RecordingSim]:
     sim = RecordingSim(World(seed=1), blob)
-    return BaseStack(sim, BaseConfig(quirks="reference")), sim
+    return BaseStack(sim, BaseConfig(quirks=Quirks.REFERENCE)), sim
 
 
 def frames(data: bytes) -> list[Frame]:
@@ -67,7 +67,7 @@ def booted_stack(blob: bytes | None = None) -> tuple[BaseStack, RecordingSim]:
 def test_quirks_names() -> None:
     assert parse_quirks("Reference") is Quirks.REFERENCE
     with pytest.raises(UsageError, match="unknown quirks mode 'nope'"):
-        BaseConfig(quirks="nope")
+        BaseConfig(quirks="nope")  # type: ignore[arg-type]
 
 
 def test_garbage_then_a_request_gives_not_synced_reports_then_0090_and_no_answer() -> None:
