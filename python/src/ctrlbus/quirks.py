@@ -15,7 +15,10 @@ reproduced here, sans-IO (bytes and time in, the items the main loop acts on out
 - a frame that completes while an error is raised and not yet reported, or while a report is being
   sent, is dropped: the next report carries 0x80 (and 0x10) instead, e.g. 0x0090, and the
   request is never answered;
-- LEN = 0 (`10 00 10`) completes a frame that re-runs the previous frame's command and payload;
+- one 512-byte buffer holds the CMD and payload of the last frame, and the handlers read their
+  fields at fixed places in it: lengths are never checked (a short request is completed with the
+  previous frame's bytes, a long one is cut), and LEN = 0 (`10 00 10`) re-runs whatever the
+  previous frame left there;
 - for `boot_s` after power-on the main loop does not run (the reference beeps); frames received
   meanwhile overwrite each other and only the last complete one is acted on when the loop starts.
 
@@ -28,8 +31,9 @@ from __future__ import annotations
 import enum
 from collections.abc import Callable
 
-from ctrlbus.errors import UsageError
+from ctrlbus.errors import MessageFormatError, UsageError
 from ctrlbus.frame import FLAG_LONG, FLAG_STANDARD, Frame, checksum
+from ctrlbus.messages import Cmd, decode_request
 
 __all__ = [
     "BOOT_SILENCE_S",
@@ -53,6 +57,7 @@ REFERENCE_RX_BUFFER = 512
 BOOT_SILENCE_S = 1.9  # power-on beeps before the main loop runs (reference §4)
 STARTUP_BATTERY_S = 3.0  # 0 % and a low-battery error until the first battery reading
 DEFAULT_BYTE_TIME_S = 10 / 115200
+MAX_FIXED_REQUEST = 24  # longer than any control-bus request with a fixed layout (SET_BASE_MOTOR: 17)
 
 
 class Quirks(enum.StrEnum):
@@ -94,7 +99,8 @@ class ReferenceReceiver:
         self._bits = 0
         self._work_since = 0.0  # when the pending bits or frame appeared
         self._ready: Frame | None = None
-        self._previous: Frame | None = None  # what LEN = 0 re-runs
+        self._body = bytearray(REFERENCE_RX_BUFFER)  # CMD and payload of the last frame
+        self._body_len = 0
         self._busy_until = 0.0  # the main loop is sending until then
         self._reporting = False  # what it sends is an error report
         self._last_time = 0.0
@@ -158,13 +164,11 @@ class ReferenceReceiver:
         if checksum(raw[:-1]) != raw[-1]:
             self._raise(CHECKSUM_BIT | FRAME_READY_BIT, at)
             return
-        if length == 0:
-            frame = self._previous  # the previous frame's command and payload run again
-            if frame is None:
-                return
-        else:
-            frame = Frame(raw[header], raw[header + 1 : -1], long=header == 3)
-            self._previous = frame
+        if length:
+            self._body[:length] = raw[header:-1]
+            self._body_len = length
+        # LEN = 0 writes nothing: the previous frame's command and payload run again.
+        frame = self._read_request(header == 3)
         if self._booting(at):
             self._ready = frame  # the loop is not running yet: only the last one survives
             return
@@ -207,3 +211,20 @@ class ReferenceReceiver:
                 continue
             out += answer
             self._busy_until = start + len(answer) * self.byte_time_s
+
+    def _read_request(self, long: bool) -> Frame:
+        """The request as the reference's handlers see it: the CMD byte, then as many payload
+        bytes as the request's layout has, taken from the buffer whatever the frame's length."""
+        body = bytes(self._body)
+        sent = max(0, self._body_len - 1)
+        cmd = body[0]
+        if cmd == Cmd.CTRL_BUS:
+            for size in (sent, *range(1, MAX_FIXED_REQUEST)):
+                try:
+                    decode_request(cmd, body[1 : 1 + size])
+                except MessageFormatError:
+                    continue  # not this request's length
+                except Exception:
+                    break  # unsupported: refused whatever its length
+                return Frame(cmd, body[1 : 1 + size], long=long)
+        return Frame(cmd, body[1 : 1 + sent], long=long)
