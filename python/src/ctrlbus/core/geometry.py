@@ -191,23 +191,44 @@ def _mount_text(mount: Mount) -> str:
     return f"({mount.x_mm:.0f}, {mount.y_mm:.0f}) mm {mount.angle_deg:.0f}°"
 
 
-def compare_geometries(adv: BaseGeometry, conf: BaseGeometry) -> list[str]:
-    """Where the 0x21 blob's geometry (`adv`) and GET_BASE_CONF's (`conf`) disagree, one line
-    each; empty when they agree. A Core reads only one of them, so each line is something that
+@dataclass(frozen=True)
+class Disagreement:
+    """One way the two configuration sources disagree. `kind`: radius, sensor_count,
+    sensor_position or bumper_count; `missing_slots`: distance channels GET_BASE_CONF lists and
+    the blob does not."""
+
+    kind: str
+    text: str
+    missing_slots: tuple[int, ...] = ()
+
+    def __str__(self) -> str:
+        return self.text
+
+
+def compare_geometries(adv: BaseGeometry, conf: BaseGeometry) -> list[Disagreement]:
+    """Where the 0x21 blob's geometry (`adv`) and GET_BASE_CONF's (`conf`) disagree, one item
+    each; empty when they agree. A Core reads only one of them, so each item is something that
     Core gets wrong (or misses) about the robot."""
-    problems: list[str] = []
+    problems: list[Disagreement] = []
     if abs(adv.radius_mm - conf.radius_mm) > RADIUS_TOLERANCE_MM:
         problems.append(
-            f"radius: the blob's robot_size/2 is {adv.radius_mm:.0f} mm, "
-            f"GET_BASE_CONF says {conf.radius_mm:.0f} mm"
+            Disagreement(
+                "radius",
+                f"radius: the blob's robot_size/2 is {adv.radius_mm:.0f} mm, "
+                f"GET_BASE_CONF says {conf.radius_mm:.0f} mm",
+            )
         )
     adv_slots = {sensor.slot: sensor.mount for sensor in adv.sensors}
     conf_slots = {sensor.slot: sensor.mount for sensor in conf.sensors}
     if len(adv_slots) != len(conf_slots):
-        missing = sorted(set(conf_slots) - set(adv_slots))
+        missing = tuple(sorted(set(conf_slots) - set(adv_slots)))
         extra = f" (channels {', '.join(map(str, missing))} are missing from the blob)" if missing else ""
         problems.append(
-            f"distance sensors: the blob lists {len(adv_slots)}, GET_BASE_CONF {len(conf_slots)}{extra}"
+            Disagreement(
+                "sensor_count",
+                f"distance sensors: the blob lists {len(adv_slots)}, GET_BASE_CONF {len(conf_slots)}{extra}",
+                missing,
+            )
         )
     for slot in sorted(set(adv_slots) & set(conf_slots)):
         a, c = adv_slots[slot], conf_slots[slot]
@@ -216,11 +237,19 @@ def compare_geometries(adv: BaseGeometry, conf: BaseGeometry) -> list[str]:
             or _angle_apart(a.angle_deg, c.angle_deg) > ANGLE_TOLERANCE_DEG
         ):
             problems.append(
-                f"distance sensor {slot}: the blob puts it at {_mount_text(a)}, "
-                f"GET_BASE_CONF at {_mount_text(c)}"
+                Disagreement(
+                    "sensor_position",
+                    f"distance sensor {slot}: the blob puts it at {_mount_text(a)}, "
+                    f"GET_BASE_CONF at {_mount_text(c)}",
+                )
             )
     if len(adv.bumpers) != len(conf.bumpers):
-        problems.append(f"bumpers: the blob lists {len(adv.bumpers)}, GET_BASE_CONF {len(conf.bumpers)}")
+        problems.append(
+            Disagreement(
+                "bumper_count",
+                f"bumpers: the blob lists {len(adv.bumpers)}, GET_BASE_CONF {len(conf.bumpers)}",
+            )
+        )
     return problems
 
 
