@@ -258,6 +258,7 @@ def test_executing_requests_of_the_wrong_length_is_a_warning_as_for_the_referenc
 # --- calibration against the reference's behaviour (issue 11) ----------------------------------
 
 REFERENCE_WARNINGS = {"checksum-error", "length", "oversize", "garbage"}
+TIMING_DEPENDENT_WARNINGS = {"oversize", "garbage"}
 
 
 def test_a_base_that_behaves_as_the_reference_gets_warnings_that_name_it_and_no_failure() -> None:
@@ -273,12 +274,15 @@ def test_a_base_that_behaves_as_the_reference_gets_warnings_that_name_it_and_no_
     expected = {check.name: Status.PASS for check in CHECKS}
     expected["profile"] = Status.SKIP
     expected.update(dict.fromkeys(REFERENCE_WARNINGS, Status.WARN))
+    # Whether the error bits combine depends on how the bytes arrive (one read or several), on a
+    # real reference as here: 16 and 17 may also pass (their deterministic cases: test_quirks.py).
+    for name in TIMING_DEPENDENT_WARNINGS:
+        if found[name] is Status.PASS:
+            expected[name] = Status.PASS
     assert found == expected, explain(report)
     for result in report.results:
-        if result.check.name in REFERENCE_WARNINGS:
+        if result.status is Status.WARN:
             assert "the reference" in result.message, explain(report)
-    garbage = next(result for result in report.results if result.check.name == "garbage")
-    assert "ERROR 0x0090" in garbage.message and "a Core resends" in garbage.message
 
 
 def test_a_base_that_drops_a_request_without_an_error_answer_fails() -> None:
