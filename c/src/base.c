@@ -357,6 +357,12 @@ static void restart(ctrlbus_base_t *base, uint32_t now_ms)
     ctrlbus_decoder_reset(&base->decoder);
 }
 
+/* The profile in force: a zero (reference) profile is the build's default. */
+static ctrlbus_base_profile_t profile_of(const ctrlbus_base_config_t *config)
+{
+    return config->profile == CTRLBUS_PROFILE_REFERENCE ? CTRLBUS_DEFAULT_PROFILE : config->profile;
+}
+
 /* Runs the application's part of a validated request and writes its OK answer. Returns 0 when
  * answered, else the ERROR code to answer with (nothing written yet then). */
 static uint16_t answer_request(ctrlbus_base_t *base, const ctrlbus_request_t *request,
@@ -364,7 +370,7 @@ static uint16_t answer_request(ctrlbus_base_t *base, const ctrlbus_request_t *re
 {
     const ctrlbus_base_config_t *config = base->config;
     void *context = config->context;
-    bool sdk2020 = config->profile == CTRLBUS_PROFILE_SDK2020;
+    bool sdk2020 = profile_of(config) == CTRLBUS_PROFILE_SDK2020;
     ctrlbus_answer_t answer;
     memset(&answer, 0, sizeof answer); /* handlers fill in what they know; the rest is zero */
     answer.kind = CTRLBUS_ANSWER_OK;
@@ -636,7 +642,7 @@ int32_t ctrlbus_base_init(ctrlbus_base_t *base, const ctrlbus_base_config_t *con
         config->rx_ring_size < 2u || config->binary_config_size > CTRLBUS_LONG_PAYLOAD_MAX ||
         (config->profile != CTRLBUS_PROFILE_REFERENCE &&
          config->profile != CTRLBUS_PROFILE_SDK2020) ||
-        (config->profile == CTRLBUS_PROFILE_SDK2020 && config->standard_answers)) {
+        (profile_of(config) == CTRLBUS_PROFILE_SDK2020 && config->standard_answers)) {
         return CTRLBUS_ERR_ARGUMENT;
     }
     uint16_t timeout = config->frame_timeout_ms;

@@ -146,6 +146,15 @@ typedef enum {
     CTRLBUS_PROFILE_SDK2020 = 1
 } ctrlbus_base_profile_t;
 
+/* Build-time option: the profile a config whose `profile` is left zero gets. Define it for the
+ * whole build, e.g. -DCTRLBUS_DEFAULT_PROFILE=CTRLBUS_PROFILE_SDK2020, to build a firmware for the
+ * vendor's 2020 master SDK without touching its code (c/firmware builds its sdk2020 image so).
+ * Zero is CTRLBUS_PROFILE_REFERENCE, so with the sdk2020 default the reference profile cannot be
+ * chosen at run time. Size effect: none. */
+#ifndef CTRLBUS_DEFAULT_PROFILE
+#define CTRLBUS_DEFAULT_PROFILE CTRLBUS_PROFILE_REFERENCE
+#endif
+
 /* Optional limits on what the Core may command (docs/protocol.md §9.2); 0 means no limit.
  * Commands beyond them are limited, counted (ctrlbus_base_counters_t.clamped_commands) and still
  * answered OK; the handlers only ever see the limited values. */
