@@ -69,7 +69,8 @@ NAME = "soak"
 TITLE = "Fault-injection soak: the Core emulator against a base through the fault injector"
 GOAL = (
     "0 commands outside the velocity limits executed; wheels stopped ≤ 1.0 s after a cut; "
-    "≥ 99.9 % of the valid requests recovered behind garbage bursts"
+    "≥ 99.9 % of the valid requests recovered behind garbage bursts; 0 requests lost against the "
+    "reference-quirks base"
 )
 
 # The line: bit errors at BER 1e-4 and a garbage burst (with a false header) in front of one byte
@@ -811,6 +812,33 @@ def run(ctx: BenchContext) -> SoakOutcome:
         "drive_pattern": DRIVE_PATTERN,
         "drive_step_s": DRIVE_STEP_S,
     }
+
+    # The reference-quirks base (ctrlbus.quirks): what the Core loses to the reference's own ways.
+    quirks = run_quirks(QUIRKS_SPEC, QUIRKS_EXCHANGES[mode])
+    details["quirks"] = quirks
+    figures.update(
+        {
+            "quirks_exchanges": quirks["exchanges"],
+            "quirks_lost_requests": quirks["lost_requests"],
+            "quirks_superseded": quirks["superseded"],
+            "quirks_disconnects": quirks["disconnects"],
+        }
+    )
+    line_faults = ", ".join(
+        f"{code}: {count:,}" for code, count in quirks["errors_by_code"].items() if int(code, 16) < 0x100
+    )
+    rows.append(
+        [
+            f"reference-quirks simulated base, virtual time, `{quirks['spec']}`: requests lost "
+            f"(of {quirks['requests_tracked']:,} that matter; {quirks['superseded']:,} periodic ones "
+            f"superseded, {quirks['disconnects']} disconnects; line faults {line_faults})",
+            "0",
+            str(quirks["lost_requests"]),
+            "",
+            "",
+            "yes" if quirks["lost_requests"] == 0 else "**no**",
+        ]
+    )
 
     pending: list[str] = []
     realtime_spec = REALTIME_SPEC[mode]

@@ -581,6 +581,7 @@ CHECKS = (
             Rule("§7.2", "dec-backtrack"),
             Rule("§7.2", "dec-timeout"),
             Rule("§8.1", "base-events"),
+            Rule("§11.6", "line-faults"),
         ),
         check_garbage,
         timed=True,
