@@ -107,7 +107,7 @@ class CoreConfig:
     rates: PollRates = field(default_factory=PollRates)
     request_timeout_s: float = 0.2  # §11.6: answer complete within 200 ms of the request's last byte
     retries: int = 2  # §11.6: after 1 + retries silent attempts in a row the base is disconnected
-    line_fault_attempts: int = 16  # §11.6: faulty attempts of one request before the base counts as lost
+    line_fault_attempts: int = 16  # §11.6: failed attempts in a row (no answer at all) before it is lost
     read_both_configs: bool = True  # §11.2: after a usable 0x21 blob, ask 0x20 too (to show both views)
     connect_interval_s: float = 0.5  # §11.1: CONNECT_BASE every 500 ms until answered
     flush_sync: bool = True  # §11.1: a 512-byte SYNC after each unanswered CONNECT_BASE

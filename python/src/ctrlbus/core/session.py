@@ -283,7 +283,8 @@ class CoreSession:
         self._health_collect: list[HealthError | None] | None = None
         self._health_flags_pending: int | None = None
         self._last_error_logged: dict[str, int] = {}
-        self._silent_streak = 0  # silent attempts in a row, whatever the request
+        self._silent_streak = 0  # silent attempts in a row, whatever the request (any frame resets it)
+        self._failed_streak = 0  # failed attempts in a row, whatever the request (an answer resets it)
         # §11.6: after the first silent attempt, a flushing SYNC goes before the next request, and
         # the request waits (held) until the flush is over.
         self._flush_pending = False
@@ -811,8 +812,9 @@ class CoreSession:
         purpose = outstanding.purpose
         one_shot = outstanding.max_attempts <= 1
         if purpose in _TRACKED_PURPOSES and not one_shot:
+            self._failed_streak += 1
             too_silent = self._silent_streak >= 1 + self.config.retries
-            too_faulty = outstanding.faulty_attempts >= self.config.line_fault_attempts
+            too_faulty = self._failed_streak >= self.config.line_fault_attempts
             if not too_silent and not too_faulty:
                 name = outstanding.schedule_name
                 if name is not None and self._next_due.get(name, now) <= now:
@@ -828,7 +830,7 @@ class CoreSession:
             what = (
                 f"{self._silent_streak} attempts in a row unanswered"
                 if too_silent
-                else (f"{outstanding.faulty_attempts} attempts hit by line faults")
+                else (f"{self._failed_streak} attempts in a row failed (line faults, no answer)")
             )
             self._log("core", f"{reason}: {what}, base disconnected")
             self._drop_connection(reason, now, notify_base=True)
@@ -852,6 +854,7 @@ class CoreSession:
 
     def _drop_connection(self, reason: str, now: float, *, notify_base: bool) -> None:
         self._abandon_outstanding()
+        self._silent_streak = self._failed_streak = 0
         self._set_state(ConnectionState.DISCONNECTED, now, reason)
         self._cancel_action("cancelled: the base is disconnected")
         self._vx = self._omega = 0.0
@@ -906,6 +909,7 @@ class CoreSession:
             return
         if outstanding.purpose is _Purpose.FLUSH:
             self._stats.flushed_frames += 1
+            self._silent_streak = 0  # the base is there: it says something about the flush
             if self._step is not _Step.CONNECT:
                 if frame.cmd == Response.SYNC and frame.raw == outstanding.frame:
                     self._end_flush(now)  # the base copied the flush back: nothing more is coming
@@ -957,6 +961,7 @@ class CoreSession:
         self._outstanding = None
         if outstanding.purpose in _TRACKED_PURPOSES:
             self._stats.answered_requests += 1
+            self._failed_streak = 0
         self._on_answer(outstanding, answer, now)
 
     def _log_error(self, request: RequestMessage, code: int) -> None:
