@@ -864,3 +864,33 @@ def test_answer_behind_a_false_frame_start_is_recovered_by_the_inter_byte_timeou
     assert planted, "no status answer went out to plant the false header in front of"
     assert stats["timeouts"] == 0 and stats["retries"] == 0, stats
     assert core.battery_percent is not None and core.connected
+
+
+def test_with_no_retries_one_silent_attempt_disconnects_and_nothing_is_lost() -> None:
+    core, base, bus = start(config=CoreConfig(retries=0))
+    base.silent = True
+    assert bus.run_until(lambda: core.state == "disconnected", 2.0)
+    stats = core.link_stats()
+    assert stats["timeouts"] == 1 and stats["disconnects"] == 1
+    assert stats["abandoned_at_disconnect"] == 1 and stats["lost_requests"] == 0
+
+
+def test_a_combined_line_fault_code_is_never_taken_for_the_answer() -> None:
+    """0x0030, 0x0090, 0x00D0, ...: the reference's receiver bits ORed (§11.6 [line-faults])."""
+    core, base, bus = start()
+    bus.run_for(0.5)
+    answered = core.link_stats()["requests_answered"]
+    base.errors["GET_BASE_SENSOR_DATA"] = 0x00D0
+    bus.run_for(0.5)
+    stats = core.link_stats()
+    assert stats["errors_by_code"]["0x00D0"] >= 2
+    assert stats["line_faults_by_bit"] == {
+        "0x10": stats["errors_by_code"]["0x00D0"],
+        "0x20": 0,
+        "0x40": stats["errors_by_code"]["0x00D0"],
+        "0x80": stats["errors_by_code"]["0x00D0"],
+    }
+    assert stats["lost_requests"] == 0 and stats["requests_answered"] > answered
+    del base.errors["GET_BASE_SENSOR_DATA"]
+    bus.run_for(0.5)
+    assert core.distances_mm is not None

@@ -144,8 +144,6 @@ class _Outstanding:
     resend: bool = False  # a failed attempt: send again at the next poll()
     transport_error: str | None = None  # a line-fault ERROR seen; the real answer may still follow
     schedule_name: str | None = None
-    silent_attempts: int = 0  # attempts that got nothing back from the base
-    faulty_attempts: int = 0  # attempts answered by a line fault, INVALID or a malformed answer
 
 
 @dataclass(frozen=True)
@@ -285,8 +283,8 @@ class CoreSession:
         self._last_error_logged: dict[str, int] = {}
         self._silent_streak = 0  # silent attempts in a row, whatever the request (any frame resets it)
         self._failed_streak = 0  # failed attempts in a row, whatever the request (an answer resets it)
-        # §11.6: after the first silent attempt, a flushing SYNC goes before the next request, and
-        # the request waits (held) until the flush is over.
+        # §11.6 [core-flush]: after a silent attempt, a flushing SYNC goes before the next request,
+        # and the request waits (held) until the flush is over.
         self._flush_pending = False
         self._held: _Outstanding | None = None
         # Telemetry.
@@ -800,18 +798,16 @@ class CoreSession:
 
     def _failed_attempt(self, outstanding: _Outstanding, reason: str, now: float, *, silent: bool) -> None:
         """An attempt failed: `silent` (a timeout) or answered by a line fault, INVALID or a
-        malformed answer (§11.6). Resent until answered; a periodic request whose next period has
-        come is superseded by it instead; the base counts as disconnected after `1 + retries`
-        silent attempts in a row, or `line_fault_attempts` faulty attempts of one request."""
+        malformed answer (§11.6 [core-resend]). A request that matters is resent until answered; a
+        periodic one whose next period has come is superseded by it instead; the base counts as
+        disconnected after `1 + retries` silent attempts in a row, or `line_fault_attempts` failed
+        attempts in a row without an answer. CONNECT_BASE, CORE_DISCONNECT and the flush have
+        their own attempt limits (§11.1, §11.7)."""
         if silent:
-            outstanding.silent_attempts += 1
             self._silent_streak += 1
             self._flush_pending = self.config.flush_sync
-        else:
-            outstanding.faulty_attempts += 1
         purpose = outstanding.purpose
-        one_shot = outstanding.max_attempts <= 1
-        if purpose in _TRACKED_PURPOSES and not one_shot:
+        if purpose in _TRACKED_PURPOSES:
             self._failed_streak += 1
             too_silent = self._silent_streak >= 1 + self.config.retries
             too_faulty = self._failed_streak >= self.config.line_fault_attempts
