@@ -31,7 +31,7 @@ from __future__ import annotations
 import enum
 from collections.abc import Callable
 
-from ctrlbus.errors import MessageFormatError, UsageError
+from ctrlbus.errors import MessageError, MessageFormatError, UsageError
 from ctrlbus.frame import FLAG_LONG, FLAG_STANDARD, Frame, checksum
 from ctrlbus.messages import Cmd, decode_request
 
@@ -224,7 +224,7 @@ class ReferenceReceiver:
                     decode_request(cmd, body[1 : 1 + size])
                 except MessageFormatError:
                     continue  # not this request's length
-                except Exception:
+                except MessageError:
                     break  # unsupported: refused whatever its length
                 return Frame(cmd, body[1 : 1 + size], long=long)
         return Frame(cmd, body[1 : 1 + sent], long=long)
