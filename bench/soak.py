@@ -60,6 +60,7 @@ from ctrlbus.frame import Frame, StreamDecoder  # noqa: E402
 from ctrlbus.link import Link  # noqa: E402
 from ctrlbus.messages import SetVAndGetDeadreckonAnswer  # noqa: E402
 from ctrlbus.ports import open_link  # noqa: E402
+from ctrlbus.quirks import Quirks  # noqa: E402
 from ctrlbus.sim.base import SimulatedBase  # noqa: E402
 from ctrlbus.sim.world import World  # noqa: E402
 from ctrlbus.vtime import VirtualBus  # noqa: E402
@@ -69,7 +70,8 @@ NAME = "soak"
 TITLE = "Fault-injection soak: the Core emulator against a base through the fault injector"
 GOAL = (
     "0 commands outside the velocity limits executed; wheels stopped ≤ 1.0 s after a cut; "
-    "≥ 99.9 % of the valid requests recovered behind garbage bursts"
+    "≥ 99.9 % of the valid requests recovered behind garbage bursts; 0 requests lost against the "
+    "reference-quirks base"
 )
 
 # The line: bit errors at BER 1e-4 and a garbage burst (with a false header) in front of one byte
@@ -458,6 +460,72 @@ def run_virtual(spec_text: str, exchanges: int, seed: int = SEED) -> dict[str, A
 
 
 # ---------------------------------------------------------------------------------------------
+# Virtual time: the simulated base in reference-quirks mode
+
+# The reference's own behaviour on a noisy line (reference §2-§4, ctrlbus.quirks): combined error
+# bits, requests dropped behind garbage reports, no inter-byte timeout, the power-on silence. No
+# cut: this run is about line faults, and what the Core loses to them.
+QUIRKS_SPEC = "ber=1e-4,burst=1e-3:1-64"
+QUIRKS_EXCHANGES = {FULL: 100_000, SMOKE: 2_000}
+
+
+def run_quirks(spec_text: str, exchanges: int, seed: int = SEED) -> dict[str, Any]:
+    """The Core emulator against the simulated base in reference-quirks mode, in virtual time,
+    until `exchanges` exchanges have completed: the fate of every request the Core sent (the
+    Core's own accounting, checked to add up) and every line-fault code by its bits."""
+    spec = FaultSpec.parse(spec_text)
+    world = World(seed=seed)
+    limits = VelocityLimits(**BASE_LIMITS, wheel_track_mm=world.base.wheel_track_mm)
+    stack = BaseStack(SimulatedBase(world), BaseConfig(limits=limits, quirks=Quirks.REFERENCE))
+    core = SoakCore(CORE_CONFIG)
+    to_base_model, to_core_model = fault_models(spec, seed, origin=0.0)
+    bus = VirtualBus(core, stack, to_base=FaultFilter(to_base_model), to_core=FaultFilter(to_core_model))
+    started = time.perf_counter()
+    step = 0
+    while len(core.completions) < exchanges:
+        if core.connected and bus.now >= step * DRIVE_STEP_S:
+            vx, omega = DRIVE_PATTERN[step % len(DRIVE_PATTERN)]
+            core.set_velocity(vx, omega)
+            step += 1
+        bus.run_for(VIRTUAL_SLICE_S)
+        if bus.now > 100.0 + exchanges:
+            raise BenchError(f"the quirks soak stalled: {len(core.completions)} exchanges in {bus.now:.0f} s")
+    wall_s = time.perf_counter() - started
+    link = core.link_stats()
+    in_flight = link["requests_tracked"] - (
+        link["requests_answered"]
+        + link["superseded"]
+        + link["abandoned_at_disconnect"]
+        + link["lost_requests"]
+    )
+    if in_flight not in (0, 1):  # at most the request in flight when the run stopped
+        raise BenchError(f"the Core's request accounting does not add up: {in_flight} requests unaccounted")
+    receiver = stack._reference_rx
+    return {
+        "spec": str(spec),
+        "seed": seed,
+        "virtual_s": round(bus.now, 1),
+        "wall_s": round(wall_s, 1),
+        "exchanges": len(core.completions),
+        "requests_sent": link["requests"],
+        "requests_tracked": link["requests_tracked"],
+        "requests_answered": link["requests_answered"],
+        "superseded": link["superseded"],
+        "abandoned_at_disconnect": link["abandoned_at_disconnect"],
+        "lost_requests": link["lost_requests"],
+        "retries": link["retries"],
+        "timeouts": link["timeouts"],
+        "disconnects": link["disconnects"],
+        "errors_by_code": link["errors_by_code"],
+        "line_faults_by_bit": link["line_faults_by_bit"],
+        "base_dropped_behind_reports": None if receiver is None else receiver.dropped_frames,
+        "base_error_reports": None if receiver is None else receiver.reports,
+        "faults_to_base": to_base_model.counters.as_dict(),
+        "faults_to_core": to_core_model.counters.as_dict(),
+    }
+
+
+# ---------------------------------------------------------------------------------------------
 # Real time: a base process on TCP
 
 
@@ -746,6 +814,33 @@ def run(ctx: BenchContext) -> SoakOutcome:
         "drive_step_s": DRIVE_STEP_S,
     }
 
+    # The reference-quirks base (ctrlbus.quirks): what the Core loses to the reference's own ways.
+    quirks = run_quirks(QUIRKS_SPEC, QUIRKS_EXCHANGES[mode])
+    details["quirks"] = quirks
+    figures.update(
+        {
+            "quirks_exchanges": quirks["exchanges"],
+            "quirks_lost_requests": quirks["lost_requests"],
+            "quirks_superseded": quirks["superseded"],
+            "quirks_disconnects": quirks["disconnects"],
+        }
+    )
+    line_faults = ", ".join(
+        f"{code}: {count:,}" for code, count in quirks["errors_by_code"].items() if int(code, 16) < 0x100
+    )
+    rows.append(
+        [
+            f"reference-quirks simulated base, virtual time, `{quirks['spec']}`: requests lost "
+            f"(of {quirks['requests_tracked']:,} that matter; {quirks['superseded']:,} periodic ones "
+            f"superseded, {quirks['disconnects']} disconnects; line faults {line_faults})",
+            "0",
+            str(quirks["lost_requests"]),
+            "",
+            "",
+            "yes" if quirks["lost_requests"] == 0 else "**no**",
+        ]
+    )
+
     pending: list[str] = []
     realtime_spec = REALTIME_SPEC[mode]
     c_base = [str(POSIX_BASE), *LISTEN_ANY, *REALTIME_BASE_OPTIONS] if POSIX_BASE.exists() else None
@@ -808,3 +903,27 @@ def update_reliability_md(results: list[dict[str, Any]], target_dir: Path | None
     target = source if target_dir is None else target_dir / "reliability.md"
     text = replace_block(source.read_text(), NAME, render_block(result, None, target.parent))
     target.write_text(text)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """`python bench/soak.py --quirks [--exchanges N]`: the reference-quirks run on its own, its
+    figures as JSON on stdout (docs/reliability.md quotes them)."""
+    import argparse
+    import json
+
+    parser = argparse.ArgumentParser(description=main.__doc__)
+    parser.add_argument(
+        "--quirks", action="store_true", help="run against the reference-quirks simulated base"
+    )
+    parser.add_argument("--exchanges", type=int, default=QUIRKS_EXCHANGES[FULL])
+    parser.add_argument("--spec", default=QUIRKS_SPEC)
+    parser.add_argument("--seed", type=int, default=SEED)
+    args = parser.parse_args(argv)
+    if not args.quirks:
+        parser.error("only --quirks runs on its own; the whole soak is `bench/run.py --only soak`")
+    print(json.dumps(run_quirks(args.spec, args.exchanges, args.seed), indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -418,11 +418,17 @@ static void restart(ctrlbus_base_t *base, uint32_t now_ms)
     ctrlbus_decoder_reset(&base->decoder);
 }
 
+/* The profile in force: a zero (reference) profile is the build's default. */
+static ctrlbus_base_profile_t profile_of(const ctrlbus_base_config_t *config)
+{
+    return config->profile == CTRLBUS_PROFILE_REFERENCE ? CTRLBUS_DEFAULT_PROFILE : config->profile;
+}
+
 /* Whether the answers take the sdk2020 forms (a constant false without that profile). */
 static bool sdk2020(const ctrlbus_base_config_t *config)
 {
 #if CTRLBUS_CONFIG_PROFILE_SDK2020
-    return config->profile == CTRLBUS_PROFILE_SDK2020;
+    return profile_of(config) == CTRLBUS_PROFILE_SDK2020;
 #else
     (void)config;
     return false;
@@ -841,7 +847,7 @@ int32_t ctrlbus_base_init(ctrlbus_base_t *base, const ctrlbus_base_config_t *con
         config->rx_ring_size < 2u || config->binary_config_size > CTRLBUS_LONG_PAYLOAD_MAX ||
         (config->profile != CTRLBUS_PROFILE_REFERENCE &&
          config->profile != CTRLBUS_PROFILE_SDK2020) ||
-        (config->profile == CTRLBUS_PROFILE_SDK2020 && config->standard_answers)) {
+        (profile_of(config) == CTRLBUS_PROFILE_SDK2020 && config->standard_answers)) {
         return CTRLBUS_ERR_ARGUMENT;
     }
     if (needs_missing_feature(config)) {

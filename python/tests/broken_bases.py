@@ -25,6 +25,7 @@ from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
+from ctrlbus import binconf
 from ctrlbus.base import BaseConfig, BaseStack
 from ctrlbus.frame import Frame, StreamDecoder, checksum, encode
 from ctrlbus.link import Link
@@ -35,6 +36,7 @@ from ctrlbus.messages import (
     ExternalCommand,
     GetBaseConfAnswer,
     GetBaseStatusAnswer,
+    Position,
     Request,
     Response,
     SetVAndGetDeadreckonAnswer,
@@ -204,6 +206,48 @@ class DeafAfterGarbage(RewritingStack):
         if any(error_code(frame) == 0x0010 for frame in frames_of(answer)):
             self._deaf_until = now + self.DEAF_S
         return answer
+
+
+class DropsBehindGarbage(RewritingStack):
+    """A request that arrives right behind garbage is dropped without a word: the garbage is
+    reported (ERROR 0x0010), the request is neither answered nor reported dropped. The reference
+    drops such a request too but says so (ERROR 0x0090), so that a Core resends at once; this one
+    leaves the Core to find out at its request timeout (worse than the reference: a failure)."""
+
+    def change_input(self, data: bytes, requests: list[Frame], now: float) -> bytes:
+        at = data.find(requests[0].raw) if requests else -1
+        return data[:at] if at > 0 else data  # garbage in front of a request: the garbage only
+
+
+def complete_blob(robot_size_m: float) -> bytes:
+    """The example blob with the simulated base's two IR channels listed too (as plain-string
+    type "ir"), so that it describes every distance sensor: only `robot_size_m` can disagree."""
+    tree = binconf.example_config()
+    base = tree["base"]
+    assert isinstance(base, dict) and isinstance(base["sensors"], list)
+    base["robot_size"] = robot_size_m
+    for channel, y, yaw in ((3, 0.16, math.pi / 2), (4, -0.16, -math.pi / 2)):
+        pose: dict[str, binconf.JsonValue] = {"x": 0.0, "y": y, "z": 0.06, "yaw": yaw}
+        base["sensors"].append({"type": "ir", "id": {"u8": channel}, "installation_pose": pose})
+    return binconf.encode(tree)
+
+
+class BlobRobotSizeIsTheRadius(SimulatedBase):
+    """Serves a 0x21 blob whose robot_size is the radius (0.17), not the diameter: a Core that
+    reads the blob believes the robot is half its size (§12.4 [conf-units])."""
+
+    def __init__(self) -> None:
+        super().__init__(World(seed=SEED), binary_config=complete_blob(0.17))
+
+
+class UnlistedDistanceChannels(SimulatedBase):
+    """GET_BASE_CONF lists only the first two distance sensors while all six report readings:
+    a Core has no position for channels 2-5 and ignores them (§12.4 [conf-sensor-list])."""
+
+    def base_config(self) -> GetBaseConfAnswer:
+        conf = super().base_config()
+        sensors = tuple(position if slot < 2 else Position() for slot, position in enumerate(conf.sensors))
+        return replace(conf, sensor_num=2, sensors=sensors)
 
 
 class ExecutesBadChecksums(RewritingStack):
@@ -523,6 +567,24 @@ BROKEN_BASES: tuple[BrokenBase, ...] = (
         "garbage",
         DeafAfterGarbage,
         only="1,17",  # it stays deaf for a while after the check: later checks are not independent
+    ),
+    BrokenBase(
+        "drops-requests-behind-garbage",
+        "a request right behind garbage is dropped with no error answer (§11.6 [line-faults])",
+        "garbage",
+        lambda: DropsBehindGarbage(simulated_base()),
+    ),
+    BrokenBase(
+        "blob-robot-size-is-the-radius",
+        "the 0x21 blob's robot_size is the radius, not the diameter (§12.4 [conf-units])",
+        "config-agreement",
+        lambda: _sim_stack(BlobRobotSizeIsTheRadius()),
+    ),
+    BrokenBase(
+        "unlisted-distance-channels",
+        "distance channels with readings that no configuration lists (§12.4 [conf-sensor-list])",
+        "sensor-list",
+        lambda: _sim_stack(UnlistedDistanceChannels(World(seed=SEED))),
     ),
     BrokenBase(
         "executes-bad-checksum",

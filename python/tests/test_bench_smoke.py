@@ -392,6 +392,15 @@ def test_soak_real_time_runs(smoke: tuple[Path, dict[str, dict[str, Any]]]) -> N
         assert run["request_timeout_s"] < 0.2 and run["exchanges_per_s"] > 0
 
 
+def test_soak_against_the_reference_quirks_base_loses_no_request(
+    smoke: tuple[Path, dict[str, dict[str, Any]]],
+) -> None:
+    result = smoke[1]["soak"]
+    assert result["status"] in RAN
+    figures = result["figures"]
+    assert figures["quirks_exchanges"] >= 2000 and figures["quirks_lost_requests"] == 0
+
+
 def _fake_fuzz_build(root: Path, *, crash_in: str | None = None) -> Path:
     """A fuzz build directory as scripts/fuzz.sh leaves it: a log per target, corpora, coverage."""
     logs = root / "logs"

@@ -495,7 +495,7 @@ def test_example_configuration_describes_the_default_simulated_base() -> None:
     robot = default_base_description()
     base = binconf.decode(binconf.example_blob())["base"]
     assert isinstance(base, dict)
-    assert base["robot_size"] == pytest.approx(robot.radius_mm / 1000, abs=1e-6)
+    assert base["robot_size"] == pytest.approx(2 * robot.radius_mm / 1000, abs=1e-6)  # a diameter
     assert base["wheel_span"] == pytest.approx(robot.wheel_track_mm / 1000, abs=1e-6)
 
     def yaw_rad(degrees: float) -> float:

@@ -92,14 +92,15 @@ def test_connect_then_fallback_from_conf_adv_to_conf_then_system_up() -> None:
 def test_binary_configuration_is_preferred_when_served() -> None:
     core, base, bus = start(FakeBase(blob=binconf.example_blob(), distances_mm=tuple(range(100, 1700, 100))))
     bus.run_for(0.5)
-    assert base.names()[:3] == ["CONNECT_BASE", "GET_BASE_CONF_ADV", "SEND_EVENT:0x63"]
-    assert "GET_BASE_CONF" not in base.names()
+    # The blob is used; GET_BASE_CONF is asked besides it only to show its view (§11.2).
+    assert base.names()[:4] == ["CONNECT_BASE", "GET_BASE_CONF_ADV", "GET_BASE_CONF", "SEND_EVENT:0x63"]
     snap = core.snapshot()
+    assert set(snap["base"]["views"]) == {"GET_BASE_CONF", "GET_BASE_CONF_ADV"}
     tree: Any = binconf.decode(binconf.example_blob())
     geometry = geometry_from_tree(tree)
     assert geometry is not None
     assert snap["base"]["config_source"] == "GET_BASE_CONF_ADV"
-    assert snap["base"]["radius_mm"] == pytest.approx(1000.0 * tree["base"]["robot_size"])
+    assert snap["base"]["radius_mm"] == pytest.approx(1000.0 * tree["base"]["robot_size"] / 2)  # a diameter
     # Each distance sensor's reading is taken from its slot (its id in the tree).
     distances = core.distances_mm
     assert distances is not None
@@ -304,9 +305,11 @@ def test_malformed_answer_is_retried_and_a_persistent_one_disconnects() -> None:
     base.raw_ok["GET_BASE_STATUS"] = b"\x50"  # 1 byte: the 2015 form, a format error (§5.4)
     assert bus.run_until(lambda: core.link_stats()["disconnects"] >= 1, 2.0)
     stats = core.link_stats()
-    # Each connection asks for the status at once, tries 3 times and gives up; then it reconnects.
-    assert stats["malformed_answers"] == 3 * stats["disconnects"]
-    assert stats["retries"] == 2 * stats["disconnects"]
+    # A base that answers every attempt is there: the status is asked again and again (each
+    # connection asks it at once), until line_fault_attempts faulty answers make the Core give up.
+    attempts = CoreConfig().line_fault_attempts
+    assert stats["malformed_answers"] == attempts * stats["disconnects"]
+    assert stats["lost_requests"] == 0
     assert any("malformed answer to GET_BASE_STATUS" in event.text for event in core.events())
 
 
@@ -329,7 +332,9 @@ def test_lost_answer_times_out_and_is_sent_again() -> None:
     stats = core.link_stats()
     assert stats["timeouts"] == 1 and stats["retries"] == 1 and stats["disconnects"] == 0
     statuses = [when for when, request in base.requests if request.NAME == "GET_BASE_STATUS"]
-    assert statuses[1] - statuses[0] == pytest.approx(0.2 + 5 * 86.8e-6 + 0.0, abs=0.006)
+    # The timeout, then a flushing SYNC (512 bytes out, copied back) before the resend (§11.6).
+    assert any(size == 512 and statuses[0] < when < statuses[1] for when, size in base.syncs)
+    assert statuses[1] - statuses[0] == pytest.approx(0.2 + 5 * 86.8e-6 + 2 * 512 * 86.8e-6, abs=0.006)
 
 
 def test_requests_in_long_frames_in_the_sdk2020_profile() -> None:
@@ -358,9 +363,14 @@ def test_reconnect_after_the_base_goes_silent() -> None:
     base.silent = True
     assert bus.run_until(lambda: core.state == "disconnected", 2.0)
     heard = names_after(base, silent_at)
-    # The request in flight is sent 3 times, then CORE_DISCONNECT, then the connect loop.
+    # Three attempts in a row go unanswered (a periodic request whose next period has come is
+    # superseded by it rather than resent), then CORE_DISCONNECT, then the connect loop.
     notice = heard.index("SEND_EVENT:0x65")
-    assert heard[notice - 3 : notice] == [heard[notice - 1]] * 3
+    assert notice == 3
+    stats = core.link_stats()
+    assert stats["timeouts"] == 3
+    assert stats["superseded"] + stats["retries"] == 2
+    assert stats["abandoned_at_disconnect"] == 1 and stats["lost_requests"] == 0
     bus.run_for(1.0)
     heard = names_after(base, silent_at)
     assert heard[notice + 1] == "CONNECT_BASE"
@@ -854,3 +864,33 @@ def test_answer_behind_a_false_frame_start_is_recovered_by_the_inter_byte_timeou
     assert planted, "no status answer went out to plant the false header in front of"
     assert stats["timeouts"] == 0 and stats["retries"] == 0, stats
     assert core.battery_percent is not None and core.connected
+
+
+def test_with_no_retries_one_silent_attempt_disconnects_and_nothing_is_lost() -> None:
+    core, base, bus = start(config=CoreConfig(retries=0))
+    base.silent = True
+    assert bus.run_until(lambda: core.state == "disconnected", 2.0)
+    stats = core.link_stats()
+    assert stats["timeouts"] == 1 and stats["disconnects"] == 1
+    assert stats["abandoned_at_disconnect"] == 1 and stats["lost_requests"] == 0
+
+
+def test_a_combined_line_fault_code_is_never_taken_for_the_answer() -> None:
+    """0x0030, 0x0090, 0x00D0, ...: the reference's receiver bits ORed (§11.6 [line-faults])."""
+    core, base, bus = start()
+    bus.run_for(0.5)
+    answered = core.link_stats()["requests_answered"]
+    base.errors["GET_BASE_SENSOR_DATA"] = 0x00D0
+    bus.run_for(0.5)
+    stats = core.link_stats()
+    assert stats["errors_by_code"]["0x00D0"] >= 2
+    assert stats["line_faults_by_bit"] == {
+        "0x10": stats["errors_by_code"]["0x00D0"],
+        "0x20": 0,
+        "0x40": stats["errors_by_code"]["0x00D0"],
+        "0x80": stats["errors_by_code"]["0x00D0"],
+    }
+    assert stats["lost_requests"] == 0 and stats["requests_answered"] > answered
+    del base.errors["GET_BASE_SENSOR_DATA"]
+    bus.run_for(0.5)
+    assert core.distances_mm is not None

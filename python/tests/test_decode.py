@@ -193,6 +193,7 @@ def test_reference_examples_as_json_carry_the_contract_fields(
         "error",
         "error_message",
         "notes",
+        "guess",
     }
     assert all(set(record) == documented for record in frames)
 
@@ -583,3 +584,45 @@ def test_bad_options_are_one_line_and_exit_2(
         options.append(str(write_hex(tmp_path, "10 02 F8 30 DA")))
     code, _, err = run_decode(capsys, *options)
     assert code == 2 and err.count("\n") == 1 and message in err
+
+
+# --- a lone answer (issue 11) --------------------------------------------------------------------
+
+
+def test_a_lone_ok_is_read_as_the_request_its_size_makes_unique(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from ctrlbus.messages import ConnectBaseAnswer, GetBaseConfAnswer, answer_frame
+
+    connect = answer_frame(ConnectBaseAnswer("ref base", 0x005A, 1, (1, 2, 3), None), long=True)
+    conf = answer_frame(GetBaseConfAnswer(0, 180 * 256, 0, 0, (), 0, ()), long=True)
+    status = bytes.fromhex("50 03 00 02 50 03 02")  # 2 bytes: status, health or poll
+    path = write_hex(tmp_path, (connect + conf + status).hex(" "))
+    code, out, _ = run_decode(capsys, str(path), "--direction", "base", "--json")
+    assert code == 0
+    frames = [record for record in json_lines(out) if record["kind"] == "frame"]
+    assert [(f["guess"], f["error"], f["to"]) for f in frames] == [
+        ("CONNECT_BASE", "unpaired", None),
+        ("GET_BASE_CONF", "unpaired", None),
+        (None, "unpaired", None),
+    ]
+    assert frames[0]["fields"]["model"] == "ref base"
+    assert frames[1]["values"]["base_radius_mm"] == 180.0
+    assert frames[2]["fields"] is None
+    code, out, _ = run_decode(capsys, str(path), "--direction", "base")
+    lines = out.splitlines()
+    assert "model 'ref base'" in lines[0] and "a guess: read as the answer to CONNECT_BASE" in lines[0]
+    assert "the only request whose OK answer can be these 264 bytes" in lines[1]
+    assert "[unpaired]" in lines[2]
+
+
+def test_printable_ascii_in_a_payload_is_shown(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from ctrlbus.frame import encode
+
+    unread = encode(0x02, b"\x00\x01ref base\x00\x07", long=True)  # 12 bytes: no request fits
+    echo = encode(0x01, b"hello world")
+    code, out, _ = run_decode(capsys, "--direction", "base", str(write_hex(tmp_path, (unread + echo).hex())))
+    assert code == 0
+    first, second = out.splitlines()[:2]
+    assert 'text "ref base"' in first
+    assert 'text "hello world"' in second

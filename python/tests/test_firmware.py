@@ -219,23 +219,34 @@ def test_base_firmware_loses_nothing_in_a_burst_longer_than_its_ring(base_uart: 
     assert base_uart.read_bytes(len(requests)) == requests
 
 
-def test_conformance_checker_passes_against_the_firmware(firmware_images: Path, tmp_path: Path) -> None:
-    """Issue 4's acceptance: `ctrlbus check` passes against the QEMU firmware, over a real link."""
+@pytest.mark.parametrize(
+    ("image", "profile"),
+    [("ctrlbus-base.elf", "reference"), ("ctrlbus-base-sdk2020.elf", "sdk2020")],
+)
+def test_conformance_checker_passes_against_the_firmware(
+    firmware_images: Path, tmp_path: Path, image: str, profile: str
+) -> None:
+    """Issue 4's acceptance, and issue 11's: `ctrlbus check` passes against each QEMU firmware
+    image over a real link, in its own profile (check 21 requires that profile's answer sizes;
+    the sdk2020 image is the same sources built with -DCTRLBUS_DEFAULT_PROFILE)."""
     with socket.socket() as probe:  # a free port; QEMU binds it right after
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
-    qemu = Process(qemu_command_tcp(firmware_images / "ctrlbus-base.elf", port), tmp_path / "qemu.log", False)
+    qemu = Process(qemu_command_tcp(firmware_images / image, port), tmp_path / "qemu.log", False)
     try:
         connect_tcp_when_listening(port, qemu)
         report = tmp_path / "report.json"
         result = subprocess.run(
             [sys.executable, "-m", "ctrlbus", "check", "--port", f"socket://127.0.0.1:{port}",
-             "--json", str(report)],
+             "--profile", profile, "--json", str(report)],
             capture_output=True, text=True, timeout=300,
         )  # fmt: skip
         assert result.returncode == 0, f"{result.stdout}\n{result.stderr}\n{qemu.describe()}"
-        summary = json.loads(report.read_text())["summary"]
-        assert summary["fail"] == 0 and summary["pass"] >= 18, summary
+        results = json.loads(report.read_text())
+        summary = results["summary"]
+        assert summary["fail"] == 0 and summary["pass"] >= 20, summary
+        by_name = {entry["name"]: entry["status"] for entry in results["checks"]}
+        assert by_name["profile"] == "pass", results["checks"]
     finally:
         qemu.stop()
 

@@ -235,6 +235,8 @@ def decode_view(path: Path) -> tuple[list[tuple[Any, ...]], list[tuple[Any, ...]
             # An OK with no request to read it by: decode says "unpaired", the dissector classes it
             # as unsupported (and flags it unpaired in its expert info).
             error = "unsupported" if record["error"] == "unpaired" else record["error"]
+            # decode may read such an OK by its size (`guess`); the dissector does not guess.
+            guessed = record["guess"] is not None
             frames.append(
                 (
                     direction,
@@ -243,7 +245,7 @@ def decode_view(path: Path) -> tuple[list[tuple[Any, ...]], list[tuple[Any, ...]
                     record["name"],
                     record["to"],
                     error,
-                    _flatten(record["fields"]),
+                    [] if guessed else _flatten(record["fields"]),
                 )
             )
         elif record["kind"] == "rejected":

@@ -188,6 +188,9 @@ typedef enum {
     CTRLBUS_PROFILE_SDK2020 = 1
 } ctrlbus_base_profile_t;
 
+/* CTRLBUS_DEFAULT_PROFILE (ctrlbus_config.h) is the profile a config whose `profile` is left zero
+ * gets. */
+
 /* Optional limits on what the Core may command (docs/protocol.md §9.2); 0 means no limit.
  * Commands beyond them are limited, counted (ctrlbus_base_counters_t.clamped_commands) and still
  * answered OK; the handlers only ever see the limited values. */

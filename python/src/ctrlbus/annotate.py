@@ -46,6 +46,7 @@ from ctrlbus.constants import POWER_BIT_NAMES as _POWER_BITS
 from ctrlbus.errors import BinaryConfigError, MessageError, UnsupportedMessageError, UsageError
 from ctrlbus.frame import MAX_FRAME, DecoderEvent, DecoderStats, EventKind, Frame, StreamDecoder
 from ctrlbus.messages import (
+    OK_ANSWER_CLASSES,
     AnswerMessage,
     BaseSubcommand,
     Cmd,
@@ -89,9 +90,12 @@ __all__ = [
 SENDERS: Mapping[str, Direction] = {"core": Direction.CORE_TO_BASE, "base": Direction.BASE_TO_CORE}
 
 # ERROR codes that answer bytes on the line (garbage, an oversize or damaged frame), not a request.
+# (The pairing rule is the Wireshark dissector's; the reference's combined codes such as 0x0090
+# are paired like any other ERROR.)
 LINE_FAULT_ERRORS = frozenset(
     {ErrorCode.NOT_SYNCED, ErrorCode.TOO_LONG, ErrorCode.CHECKSUM, ErrorCode.REFERENCE_CHECKSUM}
 )
+MIN_TEXT_RUN = 4  # printable ASCII shown beside a payload's hex from this many characters on
 _ANSWER_CMDS = frozenset({Response.OK, Response.ERROR, Response.INVALID})
 _COPY_CMDS = frozenset({Cmd.SYNC, Cmd.ECHO})  # the same CMD in a request and in its answer
 
@@ -158,6 +162,7 @@ class FrameNote:
     error_message: str | None = None
     ambiguous: bool = False
     notes: tuple[str, ...] = ()
+    guess: str | None = None  # a lone OK read as the answer to this request, guessed by its size
 
     @property
     def size(self) -> int:
@@ -207,6 +212,7 @@ class FrameNote:
             "error": self.error,
             "error_message": self.error_message,
             "notes": list(self.notes),
+            "guess": self.guess,
         }
 
 
@@ -564,7 +570,7 @@ class Annotator:
                 notes.append("not a copy of the request")
         name = _answer_name(frame.cmd)
         message: AnswerMessage | None = None
-        error = error_message = None
+        error = error_message = guess = None
         try:
             if frame.cmd == Response.OK and to is None:
                 error = "unpaired"
@@ -573,6 +579,13 @@ class Annotator:
                     if pending is None or line_fault
                     else "answers a request of unknown kind: the OK payload cannot be read"
                 )
+                guess = guess_request(frame.payload)
+                if guess is not None:
+                    message = decode_answer(guess, frame.cmd, frame.payload)
+                    notes.append(
+                        f"a guess: read as the answer to {guess}, the only request whose OK answer "
+                        f"can be these {len(frame.payload)} bytes"
+                    )
             else:
                 # Answers that do not depend on the request decode the same for any request name.
                 message = decode_answer(to or "SYNC", frame.cmd, frame.payload)
@@ -596,7 +609,42 @@ class Annotator:
             error_message=error_message,
             ambiguous=bool(ambiguous),
             notes=tuple(notes),
+            guess=guess,
         )
+
+
+def guess_request(payload: bytes) -> str | None:
+    """The request whose OK answer alone can be `payload` (each answer layout is tried; a
+    GET_BASE_CONF_ADV blob must decode as a configuration tree), or None when none or several
+    can: CONNECT_BASE for 28 or 39 bytes, GET_BASE_CONF for 264, GET_BASE_SENSOR_DATA for 64, ...;
+    2 bytes (status, health, poll) and empty answers stay unread."""
+    found: list[str] = []
+    for name in OK_ANSWER_CLASSES:
+        try:
+            if name == "GET_BASE_CONF_ADV":
+                binconf.decode(payload)
+            else:
+                decode_answer(name, Response.OK, payload)
+        except (MessageError, BinaryConfigError):
+            continue
+        found.append(name)
+        if len(found) > 1:
+            return None
+    return found[0] if found else None
+
+
+def printable_runs(data: bytes, minimum: int = MIN_TEXT_RUN) -> list[str]:
+    """The runs of at least `minimum` printable ASCII characters in `data`, in order."""
+    runs: list[str] = []
+    current = bytearray()
+    for byte in (*data, 0):
+        if 0x20 <= byte < 0x7F:
+            current.append(byte)
+            continue
+        if len(current) >= minimum:
+            runs.append(current.decode("ascii"))
+        current.clear()
+    return runs
 
 
 def _error_kind(exc: MessageError) -> str:
@@ -761,7 +809,9 @@ def _value_text(message: Message, key: str, value: Any) -> str:
     if key in ("filler", "data", "blob"):
         size = len(value.replace(" ", "")) // 2
         shown = value if size <= 16 else value[: 16 * 3 - 1] + " ..."
-        return f"{size} bytes" + (f": {shown}" if size else "")
+        runs = printable_runs(bytes.fromhex(value))
+        text = ("  text " + " ".join(json.dumps(run) for run in runs)) if runs else ""
+        return f"{size} bytes" + (f": {shown}" if size else "") + text
     return str(value)
 
 
@@ -884,6 +934,9 @@ def format_annotation(entry: Annotation, *, color: bool = False, time_origin: fl
             text += style.dim(
                 f"  payload {hex_text(frame.payload[:32])}{' ...' if len(frame.payload) > 32 else ''}"
             )
+            runs = printable_runs(frame.payload)
+            if runs:
+                text += style.dim("  text " + " ".join(json.dumps(run) for run in runs))
     for note in entry.notes:
         text += "  " + style.note(f"({note})")
     return " ".join(head) + " " + text

@@ -38,6 +38,8 @@ from ctrlbus.constants import (
     HEALTH_ERROR,
     HEALTH_FATAL,
     HEALTH_WARNING,
+    REFERENCE_LOW_BATTERY_CODE,
+    REFERENCE_LOW_BATTERY_MESSAGE,
     WATCHDOG_TRIPPED_CODE,
     WATCHDOG_TRIPPED_MESSAGE,
     Profile,
@@ -95,6 +97,7 @@ from ctrlbus.messages import (
     answer_frame,
     decode_request,
 )
+from ctrlbus.quirks import STARTUP_BATTERY_S, Quirks, ReferenceReceiver, parse_quirks
 
 if TYPE_CHECKING:
     from typing_extensions import Self  # typing.Self from Python 3.11; annotations only
@@ -224,6 +227,10 @@ class BaseConfig:
       one is answered ERROR 0x0020.
     - `frame_timeout_s`: inter-byte timeout of a frame in progress; 0 switches it off.
     - `limits`: optional velocity limits.
+    - `quirks`: `Quirks.REFERENCE` imitates the reference firmware's receiver and start-up
+      (ctrlbus.quirks, docs/simulator.md): combined error bits, requests dropped behind pending
+      garbage reports, LEN = 0 re-running the previous request, no inter-byte timeout, 1.9 s of
+      silence after power-on, 0 % battery and a low-battery error for the first 3 s.
     """
 
     profile: Profile = Profile.REFERENCE
@@ -233,9 +240,11 @@ class BaseConfig:
     max_frame: int = DEFAULT_MAX_FRAME
     frame_timeout_s: float = DEFAULT_FRAME_TIMEOUT_S
     limits: VelocityLimits = field(default_factory=VelocityLimits)
+    quirks: Quirks = Quirks.NONE
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "profile", parse_profile(self.profile))
+        object.__setattr__(self, "quirks", parse_quirks(self.quirks))
         _positive_or_none("BaseConfig", "watchdog_s", self.watchdog_s)
         if isinstance(self.max_frame, bool) or not isinstance(self.max_frame, int) or self.max_frame < 5:
             raise UsageError(f"BaseConfig.max_frame must be an integer >= 5, got {self.max_frame!r}")
@@ -661,6 +670,8 @@ class BaseStack:
         self._queued = 0
         self._taken = 0
         self.last_handler_error: str | None = None
+        self._reference_rx = ReferenceReceiver() if self.config.quirks is Quirks.REFERENCE else None
+        self._startup_battery_reported = False
         app.attach(self)
 
     # -- input --------------------------------------------------------------------------------
@@ -673,6 +684,8 @@ class BaseStack:
             self._run_deferred(now)
             self._advance(now)
             self._bytes_received += len(data)
+            if self._reference_rx is not None:
+                return self._receive_as_reference(self._reference_rx, bytes(data), now)
             return self._handle(self._decoder.feed_items(data, now), now)
 
     def reset_line(self) -> None:
@@ -842,6 +855,30 @@ class BaseStack:
         self._bytes_sent += len(out)
         return bytes(out)
 
+    def _receive_as_reference(self, receiver: ReferenceReceiver, data: bytes, now: float) -> bytes:
+        """Quirks mode: the reference's receiver decides what is executed and reported."""
+        startup = self._epoch is not None and now - self._epoch < STARTUP_BATTERY_S
+        if startup and REFERENCE_LOW_BATTERY_CODE not in self.health:
+            self.health.add(REFERENCE_LOW_BATTERY_CODE, REFERENCE_LOW_BATTERY_MESSAGE)
+        elif not startup and self._startup_battery_reported:
+            self.health.clear(REFERENCE_LOW_BATTERY_CODE)
+        self._startup_battery_reported = startup
+
+        def serve(item: Frame | int) -> bytes:
+            answer = bytearray()
+            if isinstance(item, int):
+                self._send_error(item, answer)
+            else:
+                self._handle_frame(item, now, answer)
+            return bytes(answer)
+
+        out = receiver.feed(data, now, serve)
+        if self._resetting:  # a REBOOT was answered: the receiver starts over, silent again
+            self._resetting = False
+            receiver.power_on(now)
+        self._bytes_sent += len(out)
+        return out
+
     def _send(self, frame_bytes: bytes, out: bytearray) -> None:
         out += frame_bytes
         self._answers += 1
@@ -900,7 +937,10 @@ class BaseStack:
             case GetBaseConfAdv():
                 return GetBaseConfAdvAnswer(_expect(app.binary_config(), bytes))
             case GetBaseStatus():
-                return _expect(app.status(), GetBaseStatusAnswer)
+                status = _expect(app.status(), GetBaseStatusAnswer)
+                if self._startup_battery_reported:
+                    status = replace(status, battery_percent=0)  # quirks: no battery reading yet
+                return status
             case GetBaseMotorData():
                 return _expect(app.motor_data(), GetBaseMotorDataAnswer)
             case GetBaseSensorData():

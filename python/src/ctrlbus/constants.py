@@ -27,6 +27,8 @@ __all__ = [
     "HEALTH_ERROR",
     "HEALTH_FATAL",
     "HEALTH_WARNING",
+    "LINE_FAULT_BIT_NAMES",
+    "LINE_FAULT_LIMIT",
     "MOTION_BIT_NAMES",
     "MOTION_DEFINED_BITS",
     "MOTION_STALL",
@@ -37,6 +39,8 @@ __all__ = [
     "POWER_DEFINED_BITS",
     "POWER_ON_DOCK",
     "PROFILE_ANSWER_SIZES",
+    "REFERENCE_LOW_BATTERY_CODE",
+    "REFERENCE_LOW_BATTERY_MESSAGE",
     "TYPE_WATCHDOG_TRIPPED",
     "WATCHDOG_TRIPPED_CODE",
     "WATCHDOG_TRIPPED_MESSAGE",
@@ -75,6 +79,20 @@ def health_code(level: int, component: int, error_type: int, index: int = 0) -> 
 # protocol.md §10.3: what a base lists once its motor watchdog stopped the wheels (0x01038000).
 WATCHDOG_TRIPPED_CODE = health_code(HEALTH_WARNING, COMPONENT_MOTION, TYPE_WATCHDOG_TRIPPED)
 WATCHDOG_TRIPPED_MESSAGE = "motor watchdog tripped"
+# The reference's low-battery error (power, type 0x01, index 0), which its quirks mode shows at start.
+REFERENCE_LOW_BATTERY_CODE = health_code(HEALTH_ERROR, COMPONENT_POWER, 0x01)  # 0x02020100
+REFERENCE_LOW_BATTERY_MESSAGE = "low battery"
+
+# --- line faults (protocol §11.6): an ERROR code below LINE_FAULT_LIMIT is the base receiver's
+# state, bits ORed together by the reference; never an answer, the request is sent again.
+
+LINE_FAULT_LIMIT = 0x0100
+LINE_FAULT_BIT_NAMES = {
+    0x10: "not synchronised",
+    0x20: "too long",
+    0x40: "checksum",
+    0x80: "a frame was ready",
+}
 
 # --- GET_BASE_STATUS bits (protocol.md §5.4, §5.5) ---------------------------------------------
 

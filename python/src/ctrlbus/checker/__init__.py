@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from ctrlbus.checker.checks_config import CHECKS as _CONFIG_CHECKS
 from ctrlbus.checker.checks_requests import CHECKS as _REQUEST_CHECKS
 from ctrlbus.checker.checks_timing import CHECKS as _TIMING_CHECKS
 from ctrlbus.checker.checks_wire import CHECKS as _WIRE_CHECKS
@@ -64,7 +65,7 @@ __all__ = [
 ]
 
 CHECKS: tuple[Check, ...] = tuple(
-    sorted(_REQUEST_CHECKS + _WIRE_CHECKS + _TIMING_CHECKS, key=lambda check: check.number)
+    sorted(_REQUEST_CHECKS + _WIRE_CHECKS + _TIMING_CHECKS + _CONFIG_CHECKS, key=lambda check: check.number)
 )
 assert [check.number for check in CHECKS] == list(range(1, len(CHECKS) + 1)), "check numbers must run 1..N"
 

@@ -12,6 +12,7 @@ from functools import partial
 
 from ctrlbus.checker.framework import SECOND_ANSWER_WAIT_S, Check, CheckContext, Rule, error_code_of
 from ctrlbus.checker.probe import FLUSHING_SYNC, describe_frame
+from ctrlbus.constants import LINE_FAULT_BIT_NAMES, LINE_FAULT_LIMIT
 from ctrlbus.frame import Frame, encode
 from ctrlbus.messages import Cmd, ErrorCode, Request, Response
 
@@ -46,6 +47,23 @@ def ctrl(payload: bytes, *, long: bool = False) -> bytes:
 def bad_checksum(frame: bytes) -> bytes:
     """The same frame with its checksum byte inverted."""
     return frame[:-1] + bytes((frame[-1] ^ 0xFF,))
+
+
+# A genuine reference behaviour that a real Core tolerates is a warning that names it (issue 11).
+REFERENCE_RESENDS = "the reference firmware does this; a Core resends"
+
+
+def line_fault_bits(code: int) -> str:
+    """'0x0010 not synchronised + 0x0080 a frame was ready' for a line-fault code (below 0x0100)."""
+    return (
+        " + ".join(f"0x{bit:04X} {name}" for bit, name in LINE_FAULT_BIT_NAMES.items() if code & bit)
+        or "no bit"
+    )
+
+
+def is_line_fault(code: int | None, bit: int = 0xF0) -> bool:
+    """An ERROR code below 0x0100 (the receiver's state, §11.6 [line-faults]) with `bit` set."""
+    return code is not None and code < LINE_FAULT_LIMIT and bool(code & bit)
 
 
 def _got(frame: Frame) -> str:
@@ -173,9 +191,12 @@ def check_checksum_error(ctx: CheckContext) -> None:
         code = error_code_of(frame)
         if code == ErrorCode.CHECKSUM:
             codes.append("0x0040")
-        elif code == ErrorCode.REFERENCE_CHECKSUM:
-            codes.append("0x00C0")
-            ctx.warn(f"{what}: answered 0x00C0, the reference's quirk; ctrlbus bases send 0x0040 (§4.5)")
+        elif is_line_fault(code, ErrorCode.CHECKSUM) and code is not None:
+            codes.append(f"0x{code:04X}")
+            ctx.warn(
+                f"{what}: answered 0x{code:04X} ({line_fault_bits(code)}), not 0x0040: {REFERENCE_RESENDS}; "
+                "ctrlbus bases send 0x0040 (§4.5, §11.6 [line-faults])"
+            )
         elif frame.cmd == Response.OK:
             ctx.fail(f"{what}: answered OK, so the frame was executed (§8.1 [base-no-exec])")
         else:
@@ -319,18 +340,30 @@ def check_length(ctx: CheckContext) -> None:
                 )
             else:
                 ctx.fail(f"{what}: answered {_got(frame)}, expected ERROR 0x8001 (§8.2)")
+        # LEN = 0 right after a valid GET_BASE_STATUS: the reference runs that request again.
+        previous = ctx.exchange(STATUS_REQUEST, "GET_BASE_STATUS (the frame before LEN = 0)").frame
         empty = bytes.fromhex("10 00 10")
         what = "a LEN = 0 frame (10 00 10, no CMD)"
         frame = ctx.prober.exchange(empty, what).frame
         if frame is None:
-            ctx.warn(
-                f"{what}: not answered; a ctrlbus base answers 0x8001 "
-                "(the reference's reaction is undefined, §3.3)"
-            )
+            ctx.warn(f"{what}: not answered; a ctrlbus base answers 0x8001 (§3.3 [frame-empty])")
         elif error_code_of(frame) == ErrorCode.FORMAT:
             refused += 1
+        elif (
+            previous is not None
+            and frame.cmd == previous.cmd == Response.OK
+            and len(frame.payload) == len(previous.payload)
+        ):
+            ctx.warn(
+                f"{what}: ran the previous request (GET_BASE_STATUS) again: the reference firmware does "
+                "this (its CMD and payload stay in its buffer); a Core never sends LEN = 0, noise can; "
+                "a ctrlbus base answers 0x8001 (§3.3 [frame-empty])"
+            )
         else:
-            ctx.fail(f"{what}: answered {_got(frame)}, expected ERROR 0x8001 (§3.3 [frame-empty])")
+            ctx.fail(
+                f"{what}: answered {_got(frame)}, expected ERROR 0x8001 or a re-run of the previous "
+                "request (§3.3 [frame-empty])"
+            )
     finally:
         ctx.stop_wheels()  # in case a short SET_BASE_MOTOR was executed with whatever was buffered
     ctx.summary = f"{refused} of {len(cases) + 1} malformed requests answered ERROR 0x8001"
@@ -348,7 +381,14 @@ def _oversize_attempt(ctx: CheckContext, data: bytes) -> str:
     if frame is None:
         ctx.fail(f"{what}: no answer at all; a frame larger than the receive buffer is answered ERROR 0x0020")
         return "other"
-    if error_code_of(frame) == ErrorCode.TOO_LONG:
+    code = error_code_of(frame)
+    if code != ErrorCode.TOO_LONG and is_line_fault(code, ErrorCode.TOO_LONG) and code is not None:
+        ctx.warn(
+            f"{what}: answered 0x{code:04X} ({line_fault_bits(code)}), not 0x0020: {REFERENCE_RESENDS} "
+            "(§4.5, §11.6 [line-faults])"
+        )
+        code = ErrorCode.TOO_LONG
+    if code == ErrorCode.TOO_LONG:
         garbage = sum(1 for f in extra if error_code_of(f) == ErrorCode.NOT_SYNCED)
         if garbage:
             ctx.note(f"then {garbage} x ERROR 0x0010 for the rest of the frame, as the reference does")
@@ -405,11 +445,26 @@ def check_garbage(ctx: CheckContext) -> None:
     prober.drain()
     sent_at = prober.send(PLAIN_GARBAGE + STATUS_REQUEST, "8 garbage bytes, then GET_BASE_STATUS")
     before, answer, latency = _until(ctx, sent_at, wait_s, _is_ok)
-    reports = sum(1 for frame in before if error_code_of(frame) == ErrorCode.NOT_SYNCED)
+    codes = [error_code_of(frame) for frame in before]
+    reports = sum(1 for code in codes if is_line_fault(code, ErrorCode.NOT_SYNCED))
     if answer is None:
-        ctx.fail(
-            f"GET_BASE_STATUS right after 8 garbage bytes was not answered within {wait_s * 1000:.0f} ms"
-        )
+        dropped = [code for code in codes if is_line_fault(code, 0x80) and code is not None]
+        again = prober.exchange(STATUS_REQUEST, "GET_BASE_STATUS again, as a Core resends").frame
+        answered_again = again is not None and again.cmd == Response.OK
+        lost = f"GET_BASE_STATUS right after 8 garbage bytes was not answered within {wait_s * 1000:.0f} ms"
+        if not answered_again:
+            ctx.fail(f"{lost}, nor when sent again")
+        elif dropped:
+            ctx.warn(
+                f"{lost}: it was dropped and reported as ERROR 0x{dropped[-1]:04X} "
+                f"({line_fault_bits(dropped[-1])}), and answered when sent again: {REFERENCE_RESENDS} "
+                "(§11.6 [line-faults])"
+            )
+        else:
+            ctx.fail(
+                f"{lost}, and no ERROR said it was dropped ({reports} x garbage reported): a Core notices "
+                "only at its request timeout; the reference answers such a request with 0x0090 at once"
+            )
     elif reports == 0:
         ctx.warn("the garbage was not reported with ERROR 0x0010 (§8.1 [base-events])")
     elif reports > 1:
@@ -443,7 +498,8 @@ def check_garbage(ctx: CheckContext) -> None:
     frame = prober.exchange(STATUS_REQUEST, "GET_BASE_STATUS after the flushing SYNC").frame
     if frame is not None and frame.cmd == Response.OK:
         ctx.warn(
-            "recovered only after the Core's flushing SYNC, as the reference base does: a §7 decoder "
+            "recovered only after the Core's flushing SYNC: the reference firmware does this (no "
+            "inter-byte timeout); a Core flushes and resends (§11.6 [core-flush]); a §7 decoder "
             "drops a stale partial frame after its inter-byte timeout and finds the request behind it"
         )
     else:
@@ -523,6 +579,7 @@ CHECKS = (
             Rule("§7.2", "dec-backtrack"),
             Rule("§7.2", "dec-timeout"),
             Rule("§8.1", "base-events"),
+            Rule("§11.6", "line-faults"),
         ),
         check_garbage,
         timed=True,

@@ -306,6 +306,10 @@ class Report:
         return counts
 
 
+# A reference base is silent for about 1.9 s after power-on (reference §4): keep asking this long.
+HELLO_BOOT_S = 2.5
+
+
 def _result_of(
     check: Check, context: CheckContext, evidence: list[Evidence], duration_s: float
 ) -> CheckResult:
@@ -319,22 +323,29 @@ def _result_of(
 def _hello(prober: Prober) -> None:
     """Make sure something answers before any check runs; ProtocolTimeout if nothing does.
 
-    Two CONNECT_BASE attempts, with the Core's flushing SYNC between them (a reference base may be
-    stuck on a partial frame left by whoever used the port before).
+    CONNECT_BASE attempts, with the Core's flushing SYNC between them (a reference base may be
+    stuck on a partial frame left by whoever used the port before), for at least two attempts and
+    HELLO_BOOT_S: a reference base just powered on says nothing for about 1.9 s (reference §4).
     """
     connect = request_frame(ConnectBase())
-    for attempt in (1, 2):
+    began = time.monotonic()
+    attempt = 0
+    while attempt < 2 or time.monotonic() - began < HELLO_BOOT_S:
+        attempt += 1
         exchange = prober.exchange(connect, f"CONNECT_BASE (is a base there? attempt {attempt})")
         if exchange.frame is not None or prober.bytes_received:
             prober.drain(0.05)
             return
-        if attempt == 1:
-            prober.send(FLUSHING_SYNC, "flushing SYNC (512 bytes), §11.1")
-            prober.wait(0.1)
+        prober.send(FLUSHING_SYNC, "flushing SYNC (512 bytes), §11.1")
+        prober.wait(0.1)
+        if prober.bytes_received:  # a booting base answered the last frame it heard: the SYNC
+            prober.drain(0.05)
+            return
     limit_ms = prober.answer_limit_s * 1000
     raise ProtocolTimeout(
         f"no answer from {prober.link.name}: not one byte came back to CONNECT_BASE "
-        f"(2 attempts, {limit_ms:.0f} ms each); is the base running on this port, at this baud rate?"
+        f"({attempt} attempts, {limit_ms:.0f} ms each, over {time.monotonic() - began:.1f} s); "
+        "is the base running on this port, at this baud rate?"
     )
 
 

@@ -90,7 +90,10 @@ def register(subparsers: Any) -> None:
         help="answer timeout after a request's last byte (default 200)",
     )
     parser.add_argument(
-        "--retries", default="2", metavar="N", help="times a request is sent again (default 2)"
+        "--retries",
+        default="2",
+        metavar="N",
+        help="disconnected after 1 + N attempts in a row get nothing back (default 2)",
     )
     parser.add_argument(
         "--profile",

@@ -4,7 +4,7 @@
     ctrlbus sim --pty | --listen HOST:PORT | --port URL [--config FILE] [--room FILE]
                 [--binary-config FILE] [--profile reference|sdk2020] [--time-scale X] [--seed N]
                 [--watchdog-ms N] [--frame-timeout-ms N] [--max-wheel-speed MM_S]
-                [--reference-checksum]
+                [--reference-checksum] [--quirks none|reference]
 
 Prints where it serves on stdout as one line (`pty: /dev/pts/N`, `listen: HOST:PORT` or
 `port: URL`), then answers the Core until Ctrl-C or SIGTERM (exit 0).
@@ -21,6 +21,7 @@ from ctrlbus.base import DEFAULT_FRAME_TIMEOUT_S, DEFAULT_WATCHDOG_S, serve
 from ctrlbus.cli.common import add_serve_arguments, stop_on_signals
 from ctrlbus.constants import Profile
 from ctrlbus.errors import UsageError
+from ctrlbus.quirks import parse_quirks
 from ctrlbus.sim.description import load_base_description
 from ctrlbus.sim.server import MAX_TIME_SCALE, SimServer, SimSettings
 
@@ -100,6 +101,15 @@ def register(subparsers: Any) -> None:
         action="store_true",
         help="answer checksum errors with 0x00C0 as the reference firmware does (default 0x0040)",
     )
+    parser.add_argument(
+        "--quirks",
+        default="none",
+        metavar="MODE",
+        help="reference: behave as the reference firmware was seen to (combined error bits, 0x00C0, "
+        "requests dropped behind garbage reports, LEN=0 re-running the previous request, no "
+        "inter-byte timeout, 1.9 s of silence and a low battery at power-on; docs/simulator.md); "
+        "none (default): the documented ctrlbus behaviour",
+    )
     parser.set_defaults(func=run)
 
 
@@ -151,6 +161,7 @@ def settings_from_args(args: argparse.Namespace) -> SimSettings:
         frame_timeout_s=frame_timeout_ms / 1000.0,
         reference_checksum_code=args.reference_checksum,
         max_wheel_mm_s=max_wheel,
+        quirks=parse_quirks(args.quirks),
     )
 
 

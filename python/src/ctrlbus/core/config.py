@@ -114,7 +114,9 @@ class CoreConfig:
 
     rates: PollRates = field(default_factory=PollRates)
     request_timeout_s: float = 0.2  # §11.6: answer complete within 200 ms of the request's last byte
-    retries: int = 2  # §11.6: sent again at most twice
+    retries: int = 2  # §11.6: after 1 + retries silent attempts in a row the base is disconnected
+    line_fault_attempts: int = 16  # §11.6: failed attempts in a row (no answer at all) before it is lost
+    read_both_configs: bool = True  # §11.2: after a usable 0x21 blob, ask 0x20 too (to show both views)
     connect_interval_s: float = 0.5  # §11.1: CONNECT_BASE every 500 ms until answered
     flush_sync: bool = True  # §11.1: a 512-byte SYNC after each unanswered CONNECT_BASE
     decoder_timeout_s: float = 0.1  # §7.6: host-side inter-byte timeout
@@ -140,6 +142,9 @@ class CoreConfig:
             raise UsageError("CoreConfig.docking must be a DockingConfig")
         if isinstance(self.retries, bool) or not isinstance(self.retries, int) or not 0 <= self.retries <= 10:
             raise UsageError(f"CoreConfig.retries must be an integer 0..10, got {self.retries!r}")
+        attempts = self.line_fault_attempts
+        if isinstance(attempts, bool) or not isinstance(attempts, int) or not 1 <= attempts <= 1000:
+            raise UsageError(f"CoreConfig.line_fault_attempts must be an integer 1..1000, got {attempts!r}")
         positive = (
             "request_timeout_s",
             "connect_interval_s",

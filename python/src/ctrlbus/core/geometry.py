@@ -3,8 +3,9 @@
 
 It comes from GET_BASE_CONF (0x20, fixed layout) or from the binary configuration tree of
 GET_BASE_CONF_ADV (0x21, decoded by ctrlbus.binconf), which the Core prefers when the base serves
-one. The tree is metres and radians; everything here is millimetres and degrees (0..360, as the
-0x20 layout has them).
+one. The tree is metres, radians and fractions, as the reference's own blob has them, and its
+`robot_size` is the robot's DIAMETER (0.36 for the reference base whose GET_BASE_CONF says radius
+180 mm); everything here is millimetres and degrees (0..360, as the 0x20 layout has them).
 """
 
 from __future__ import annotations
@@ -138,7 +139,7 @@ def _mount_from_pose(pose: JsonValue) -> Mount:
 def geometry_from_tree(tree: Mapping[str, JsonValue]) -> BaseGeometry | None:
     """The geometry in a decoded configuration tree, or None if it has no `base` object.
 
-    `robot_size` is read as the radius in metres, `sensors[]` entries by their `type`: bumpers and
+    `robot_size` is read as the diameter in metres, `sensors[]` entries by their `type`: bumpers and
     cliffs by name, anything else is a distance sensor. An entry's `id` is its slot (distance
     sensors) or bit (bumpers); cliff ids count from the bit after the last bumper, as the
     reference lays its bitmap out. Entries without an id take their order.
@@ -146,7 +147,7 @@ def geometry_from_tree(tree: Mapping[str, JsonValue]) -> BaseGeometry | None:
     base = tree.get("base")
     if not isinstance(base, dict):
         return None
-    radius_m = _number(base.get("robot_size", None))
+    diameter_m = _number(base.get("robot_size", None))
     entries = base.get("sensors")
     distance: list[DistanceSensor] = []
     bumper_entries: list[tuple[Mount, int | None]] = []
@@ -183,8 +184,95 @@ def geometry_from_tree(tree: Mapping[str, JsonValue]) -> BaseGeometry | None:
     return BaseGeometry(
         source=SOURCE_CONF_ADV,
         shape="circle",
-        radius_mm=0.0 if radius_m is None else radius_m * 1000.0,
+        radius_mm=0.0 if diameter_m is None else diameter_m * 1000.0 / 2.0,
         sensors=tuple(distance),
         bumpers=bumpers,
         cliff_bits=cliffs,
     )
+
+
+# How far the two sources may differ before it counts as a disagreement: the blob's float metres
+# against GET_BASE_CONF's Q8 millimetres round differently, by far less than this.
+RADIUS_TOLERANCE_MM = 2.0
+POSITION_TOLERANCE_MM = 5.0
+ANGLE_TOLERANCE_DEG = 2.0
+
+
+def _angle_apart(a_deg: float, b_deg: float) -> float:
+    return abs((a_deg - b_deg + 180.0) % 360.0 - 180.0)
+
+
+def _mount_text(mount: Mount) -> str:
+    return f"({mount.x_mm:.0f}, {mount.y_mm:.0f}) mm {mount.angle_deg:.0f}°"
+
+
+@dataclass(frozen=True)
+class Disagreement:
+    """One way the two configuration sources disagree. `kind`: radius, sensor_count,
+    sensor_position or bumper_count; `missing_slots`: distance channels GET_BASE_CONF lists and
+    the blob does not."""
+
+    kind: str
+    text: str
+    missing_slots: tuple[int, ...] = ()
+
+    def __str__(self) -> str:
+        return self.text
+
+
+def compare_geometries(adv: BaseGeometry, conf: BaseGeometry) -> list[Disagreement]:
+    """Where the 0x21 blob's geometry (`adv`) and GET_BASE_CONF's (`conf`) disagree, one item
+    each; empty when they agree. A Core reads only one of them, so each item is something that
+    Core gets wrong (or misses) about the robot."""
+    problems: list[Disagreement] = []
+    if abs(adv.radius_mm - conf.radius_mm) > RADIUS_TOLERANCE_MM:
+        problems.append(
+            Disagreement(
+                "radius",
+                f"radius: the blob's robot_size/2 is {adv.radius_mm:.0f} mm, "
+                f"GET_BASE_CONF says {conf.radius_mm:.0f} mm",
+            )
+        )
+    adv_slots = {sensor.slot: sensor.mount for sensor in adv.sensors}
+    conf_slots = {sensor.slot: sensor.mount for sensor in conf.sensors}
+    if len(adv_slots) != len(conf_slots):
+        missing = tuple(sorted(set(conf_slots) - set(adv_slots)))
+        extra = f" (channels {', '.join(map(str, missing))} are missing from the blob)" if missing else ""
+        problems.append(
+            Disagreement(
+                "sensor_count",
+                f"distance sensors: the blob lists {len(adv_slots)}, GET_BASE_CONF {len(conf_slots)}{extra}",
+                missing,
+            )
+        )
+    for slot in sorted(set(adv_slots) & set(conf_slots)):
+        a, c = adv_slots[slot], conf_slots[slot]
+        if (
+            math.hypot(a.x_mm - c.x_mm, a.y_mm - c.y_mm) > POSITION_TOLERANCE_MM
+            or _angle_apart(a.angle_deg, c.angle_deg) > ANGLE_TOLERANCE_DEG
+        ):
+            problems.append(
+                Disagreement(
+                    "sensor_position",
+                    f"distance sensor {slot}: the blob puts it at {_mount_text(a)}, "
+                    f"GET_BASE_CONF at {_mount_text(c)}",
+                )
+            )
+    if len(adv.bumpers) != len(conf.bumpers):
+        problems.append(
+            Disagreement(
+                "bumper_count",
+                f"bumpers: the blob lists {len(adv.bumpers)}, GET_BASE_CONF {len(conf.bumpers)}",
+            )
+        )
+    return problems
+
+
+def geometry_view(geometry: BaseGeometry) -> dict[str, float | int]:
+    """A short summary of one source's geometry, for a status display."""
+    return {
+        "radius_mm": round(geometry.radius_mm, 1),
+        "distance_sensors": len(geometry.sensors),
+        "bumpers": len(geometry.bumpers),
+        "cliffs": len(geometry.cliff_bits),
+    }

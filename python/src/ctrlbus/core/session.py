@@ -32,6 +32,8 @@ from typing import Any
 from ctrlbus import binconf
 from ctrlbus.compat import StrEnum
 from ctrlbus.constants import (
+    LINE_FAULT_BIT_NAMES,
+    LINE_FAULT_LIMIT,
     MOTION_STALL,
     MOTION_TRACTION_LOST,
     POWER_CHARGING,
@@ -42,7 +44,14 @@ from ctrlbus.constants import WATCHDOG_TRIPPED_CODE as WATCHDOG_HEALTH_CODE
 from ctrlbus.core.actions import Action, DriveDistance, TurnAngle
 from ctrlbus.core.config import CoreConfig
 from ctrlbus.core.docking import GoHome
-from ctrlbus.core.geometry import BaseGeometry, geometry_from_conf, geometry_from_tree
+from ctrlbus.core.geometry import (
+    SOURCE_CONF_ADV,
+    BaseGeometry,
+    compare_geometries,
+    geometry_from_conf,
+    geometry_from_tree,
+    geometry_view,
+)
 from ctrlbus.core.stats import LinkStats
 from ctrlbus.errors import BinaryConfigError, MessageError, UsageError
 from ctrlbus.frame import Frame, StreamDecoder
@@ -94,7 +103,6 @@ __all__ = [
     "MAX_TRAIL_POINTS",
     "SCHEMA_VERSION",
     "TRAIL_STEP_MM",
-    "TRANSPORT_ERRORS",
     "BaseIdentity",
     "CommandState",
     "ConnectionState",
@@ -114,7 +122,6 @@ TRAIL_STEP_MM = 10.0
 # §11.1: the flushing SYNC is a long frame of exactly 512 bytes: 4 header bytes, 507 filler, checksum.
 FLUSH_FILLER = bytes(507)
 # Answers that say the request did not arrive intact (§11.6): a failed attempt, sent again.
-TRANSPORT_ERRORS = frozenset({ErrorCode.TOO_LONG, ErrorCode.CHECKSUM, ErrorCode.REFERENCE_CHECKSUM})
 
 
 class ConnectionState(StrEnum):
@@ -226,6 +233,8 @@ _SCHEDULE: tuple[tuple[str, RequestMessage | None, str], ...] = (
     ("charger", GetChargerData(0), "charger_hz"),
 )
 _DOCKING_ONLY = frozenset({"charger"})
+# Requests whose fate is accounted (answered, superseded, abandoned at a disconnect, or lost).
+_TRACKED_PURPOSES = frozenset({_Purpose.CONFIG_ADV, _Purpose.CONFIG, _Purpose.SYSTEM_UP, _Purpose.POLL})
 
 
 def _command_name(code: int) -> str:
@@ -292,11 +301,19 @@ class CoreSession:
         self._health_collect: list[HealthError | None] | None = None
         self._health_flags_pending: int | None = None
         self._last_error_logged: dict[str, int] = {}
+        self._silent_streak = 0  # silent attempts in a row, whatever the request (any frame resets it)
+        self._failed_streak = 0  # failed attempts in a row, whatever the request (an answer resets it)
+        # §11.6 [core-flush]: after a silent attempt, a flushing SYNC goes before the next request,
+        # and the request waits (held) until the flush is over.
+        self._flush_pending = False
+        self._held: _Outstanding | None = None
         # Telemetry.
         self._identity: BaseIdentity | None = None
         self._geometry: BaseGeometry | None = None
         self._configured = False
         self._config_source: str | None = None
+        # §11.2: each source's geometry, where known (the Core uses the blob's when it has one).
+        self._views: dict[str, BaseGeometry] = {}
         self._pose = Pose(0.0, 0.0, 0.0)
         self._trail: deque[tuple[float, float]] = deque([(0.0, 0.0)], maxlen=MAX_TRAIL_POINTS)
         self._deadreckon_timestamp_ms: int | None = None
@@ -389,7 +406,7 @@ class CoreSession:
         """The runner could not read or write the link: the connection is gone."""
         with self._lock:
             self._advance(now)
-            self._outstanding = None
+            self._abandon_outstanding()
             if self._step is _Step.STOPPED:
                 pass
             elif self._stop_requested:
@@ -641,6 +658,12 @@ class CoreSession:
     def _poll_locked(self, now: float) -> bytes | None:
         self._expire(now)
         outstanding = self._outstanding
+        if self._flush_pending and (outstanding is None or outstanding.resend) and self._connected_to_base():
+            # A reference base has no inter-byte timeout: a false frame start in noise may be
+            # swallowing every request; 512 bytes complete whatever it waits for (§11.6).
+            self._flush_pending = False
+            self._held = outstanding
+            return self._start(Sync(FLUSH_FILLER), _Purpose.FLUSH, now, attempts=1, quiet=True)
         if outstanding is not None:
             if outstanding.resend:
                 return self._send(outstanding, now)
@@ -739,6 +762,8 @@ class CoreSession:
             resend=True,
         )
         self._outstanding = outstanding
+        if purpose in _TRACKED_PURPOSES:
+            self._stats.tracked_requests += 1
         return outstanding
 
     def _send(self, outstanding: _Outstanding, now: float) -> bytes:
@@ -766,8 +791,7 @@ class CoreSession:
             return
         purpose = outstanding.purpose
         if purpose is _Purpose.FLUSH:
-            self._outstanding = None
-            self._schedule_next_connect(now)
+            self._end_flush(now)
             return
         if purpose is _Purpose.CONNECT:
             self._outstanding = None
@@ -777,20 +801,62 @@ class CoreSession:
                 self._schedule_next_connect(now)
             return
         if outstanding.transport_error is not None:
-            self._failed_attempt(outstanding, outstanding.transport_error, now)
+            self._failed_attempt(outstanding, outstanding.transport_error, now, silent=False)
             return
         self._stats.timeouts += 1
-        self._failed_attempt(outstanding, f"no answer to {describe_request(outstanding.message)}", now)
+        self._failed_attempt(
+            outstanding, f"no answer to {describe_request(outstanding.message)}", now, silent=True
+        )
 
-    def _failed_attempt(self, outstanding: _Outstanding, reason: str, now: float) -> None:
-        """An attempt failed (timeout, transport error, INVALID, malformed answer)."""
+    def _end_flush(self, now: float) -> None:
+        """The flushing SYNC's window is over: go on with the held request, or the connect loop."""
+        self._outstanding = None
+        if self._step is _Step.CONNECT:
+            self._schedule_next_connect(now)
+        else:
+            self._outstanding, self._held = self._held, None
+
+    def _failed_attempt(self, outstanding: _Outstanding, reason: str, now: float, *, silent: bool) -> None:
+        """An attempt failed: `silent` (a timeout) or answered by a line fault, INVALID or a
+        malformed answer (§11.6 [core-resend]). A request that matters is resent until answered; a
+        periodic one whose next period has come is superseded by it instead; the base counts as
+        disconnected after `1 + retries` silent attempts in a row, or `line_fault_attempts` failed
+        attempts in a row without an answer. CONNECT_BASE, CORE_DISCONNECT and the flush have
+        their own attempt limits (§11.1, §11.7)."""
+        if silent:
+            self._silent_streak += 1
+            self._flush_pending = self.config.flush_sync
+        purpose = outstanding.purpose
+        if purpose in _TRACKED_PURPOSES:
+            self._failed_streak += 1
+            too_silent = self._silent_streak >= 1 + self.config.retries
+            too_faulty = self._failed_streak >= self.config.line_fault_attempts
+            if not too_silent and not too_faulty:
+                name = outstanding.schedule_name
+                if name is not None and self._next_due.get(name, now) <= now:
+                    self._outstanding = None
+                    self._stats.superseded += 1  # its next period is due: the fresh one goes instead
+                    return
+                outstanding.resend = True
+                self._log("core", f"{reason} (attempt {outstanding.attempts}): sending again")
+                return
+            self._outstanding = None
+            self._stats.disconnects += 1
+            self._stats.abandoned_at_disconnect += 1
+            what = (
+                f"{self._silent_streak} attempts in a row unanswered"
+                if too_silent
+                else (f"{self._failed_streak} attempts in a row failed (line faults, no answer)")
+            )
+            self._log("core", f"{reason}: {what}, base disconnected")
+            self._drop_connection(reason, now, notify_base=True)
+            return
         if outstanding.attempts < outstanding.max_attempts:
             outstanding.resend = True
             attempt = f"attempt {outstanding.attempts}/{outstanding.max_attempts}"
             self._log("core", f"{reason} ({attempt}): sending again")
             return
         self._outstanding = None
-        purpose = outstanding.purpose
         if purpose is _Purpose.STOP or self._stop_requested:
             self._finish_stop()
         elif purpose is _Purpose.NOTICE:
@@ -798,11 +864,13 @@ class CoreSession:
         elif purpose is _Purpose.CONNECT:
             self._schedule_next_connect(now)
         else:
-            self._stats.disconnects += 1
-            self._log("core", f"{reason}: {outstanding.max_attempts} attempts failed, base disconnected")
-            self._drop_connection(reason, now, notify_base=True)
+            # A request that matters given up while the base still counts as connected.
+            self._stats.lost_requests += 1
+            self._log("core", f"{reason}: {describe_request(outstanding.message)} given up (lost)")
 
     def _drop_connection(self, reason: str, now: float, *, notify_base: bool) -> None:
+        self._abandon_outstanding()
+        self._silent_streak = self._failed_streak = 0
         self._set_state(ConnectionState.DISCONNECTED, now, reason)
         self._cancel_action("cancelled: the base is disconnected")
         self._vx = self._omega = 0.0
@@ -827,8 +895,16 @@ class CoreSession:
     def _connected_to_base(self) -> bool:
         return self._state in (ConnectionState.CONNECTED, ConnectionState.CONFIGURING)
 
+    def _abandon_outstanding(self) -> None:
+        """The connection ends with a request in flight (the link failed, or the Core stops)."""
+        for outstanding in (self._outstanding, self._held):
+            if outstanding is not None and outstanding.purpose in _TRACKED_PURPOSES:
+                self._stats.abandoned_at_disconnect += 1
+        self._outstanding = self._held = None
+        self._flush_pending = False
+
     def _finish_stop(self) -> None:
-        self._outstanding = None
+        self._abandon_outstanding()
         self._step = _Step.STOPPED
         self._set_state(ConnectionState.DISCONNECTED, self._now, "stopped")
         self._log("core", "stopped")
@@ -849,43 +925,59 @@ class CoreSession:
             return
         if outstanding.purpose is _Purpose.FLUSH:
             self._stats.flushed_frames += 1
+            self._silent_streak = 0  # the base is there: it says something about the flush
+            if self._step is not _Step.CONNECT:
+                if frame.cmd == Response.SYNC and frame.raw == outstanding.frame:
+                    self._end_flush(now)  # the base copied the flush back: nothing more is coming
+                else:
+                    # The base answers in stream order: what it says about the flush (or the
+                    # frame the flush completed) comes now, the rest follows within the grace.
+                    grace = now + self.config.transport_error_grace_s
+                    outstanding.deadline = min(outstanding.deadline, grace)
             return
         request = outstanding.message
         if request.CMD == Cmd.CTRL_BUS and frame.cmd in (Response.SYNC, Response.ECHO):
             self._stats.stray_answers += 1  # a copy of an earlier SYNC or ECHO, not this answer
             return
+        self._silent_streak = 0  # whatever it is, the base is there
         try:
             answer = decode_answer(request, frame.cmd, frame.payload)
         except MessageError as exc:
             self._stats.malformed_answers += 1
             self._stats.count_answer(now - outstanding.sent_at)
             self._log("base", f"malformed answer to {request.NAME}: {exc}")
-            self._failed_attempt(outstanding, f"malformed answer to {request.NAME}", now)
+            self._failed_attempt(outstanding, f"malformed answer to {request.NAME}", now, silent=False)
             return
         if isinstance(answer, ErrorAnswer):
             code = answer.error_code
             self._stats.errors_by_code[code] += 1
+            if code < LINE_FAULT_LIMIT:
+                self._stats.count_line_fault(code)
             if code == ErrorCode.NOT_SYNCED:
                 self._stats.not_synced_reports += 1  # about stray bytes; the answer may follow
                 return
-            self._stats.count_answer(now - outstanding.sent_at)
-            if code in TRANSPORT_ERRORS:
-                # The base answers in stream order: garbage in front of an intact request gives
-                # this error first and the real answer right after it. Resending at once would
-                # put every later answer one step out of order, so wait a moment (§11.6).
+            if code < LINE_FAULT_LIMIT:
+                # A line fault (§11.6 [line-faults]): the request, or a false frame start in noise
+                # just before it, did not arrive intact. The base answers in stream order, so an
+                # intact request's answer would follow at once: wait a moment for it, then send
+                # again (resending at once would put every later answer one step out of order).
                 self._log_error(request, code)
                 outstanding.transport_error = f"ERROR 0x{code:04X} to {request.NAME}"
                 outstanding.deadline = min(outstanding.deadline, now + self.config.transport_error_grace_s)
                 return
+            self._stats.count_answer(now - outstanding.sent_at)
         elif isinstance(answer, InvalidAnswer):
             self._stats.invalid_answers += 1
             self._stats.count_answer(now - outstanding.sent_at)
             self._log("base", f"INVALID to {request.NAME}")
-            self._failed_attempt(outstanding, f"INVALID to {request.NAME}", now)
+            self._failed_attempt(outstanding, f"INVALID to {request.NAME}", now, silent=False)
             return
         else:
             self._stats.count_answer(now - outstanding.sent_at)
         self._outstanding = None
+        if outstanding.purpose in _TRACKED_PURPOSES:
+            self._stats.answered_requests += 1
+            self._failed_streak = 0
         self._on_answer(outstanding, answer, now)
 
     def _log_error(self, request: RequestMessage, code: int) -> None:
@@ -910,8 +1002,12 @@ class CoreSession:
         elif purpose is _Purpose.CONFIG_ADV:
             self._on_config_adv(answer)
         elif purpose is _Purpose.CONFIG:
-            if isinstance(answer, GetBaseConfAnswer):
+            if isinstance(answer, GetBaseConfAnswer) and self._configured:
+                self._note_second_view(geometry_from_conf(answer))  # asked besides a usable blob
+            elif isinstance(answer, GetBaseConfAnswer):
                 self._use_geometry(geometry_from_conf(answer))
+            elif self._configured:
+                pass  # no GET_BASE_CONF besides the blob: only one view
             else:
                 self._log("core", "no configuration from the base: going on without its geometry")
                 self._use_geometry(None)
@@ -955,11 +1051,20 @@ class CoreSession:
                 return
             self._log("base", f"binary configuration: {len(answer.blob)} bytes")
             self._use_geometry(geometry)
-            self._step = _Step.SYSTEM_UP
+            self._step = _Step.CONFIG if self.config.read_both_configs else _Step.SYSTEM_UP
             return
         self._step = _Step.CONFIG  # ERROR 0x8000 (no blob), or any other refusal
 
+    def _note_second_view(self, conf: BaseGeometry) -> None:
+        self._views[conf.source] = conf
+        adv = self._views.get(SOURCE_CONF_ADV)
+        if adv is not None:
+            for problem in compare_geometries(adv, conf):
+                self._log("core", f"the two configurations disagree: {problem}")
+        self._changed.add("base")
+
     def _use_geometry(self, geometry: BaseGeometry | None) -> None:
+        self._views = {} if geometry is None else {geometry.source: geometry}
         self._geometry = geometry
         self._config_source = None if geometry is None else geometry.source
         self._configured = True
@@ -1200,7 +1305,15 @@ class CoreSession:
             "timeouts": stats.timeouts,
             "watchdog_trips": stats.watchdog_trips,
             "retries": stats.retries,
+            "lost_requests": stats.lost_requests,
+            "superseded": stats.superseded,
+            "line_faults_by_bit": {
+                f"0x{bit:02X}": stats.line_fault_bits[bit] for bit in LINE_FAULT_BIT_NAMES
+            },
             # Beyond the dashboard schema:
+            "requests_tracked": stats.tracked_requests,
+            "requests_answered": stats.answered_requests,
+            "abandoned_at_disconnect": stats.abandoned_at_disconnect,
             "answers": stats.answers,
             "connect_attempts": stats.connect_attempts,
             "disconnects": stats.disconnects,
@@ -1236,6 +1349,7 @@ class CoreSession:
                 "shape": "circle" if geometry is None else geometry.shape,
                 "radius_mm": 0.0 if geometry is None else geometry.radius_mm,
                 "config_source": self._config_source or "GET_BASE_CONF",
+                "views": {source: geometry_view(view) for source, view in self._views.items()},
             }
         max_vx, max_omega = self.limits()
         command = self._command_state()
@@ -1270,6 +1384,9 @@ class CoreSession:
             "timeouts",
             "watchdog_trips",
             "retries",
+            "lost_requests",
+            "superseded",
+            "line_faults_by_bit",
         )
         return {
             "schema": SCHEMA_VERSION,

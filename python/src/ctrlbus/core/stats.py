@@ -12,6 +12,8 @@ import math
 from collections import Counter, deque
 from dataclasses import dataclass, field
 
+from ctrlbus.constants import LINE_FAULT_BIT_NAMES
+
 __all__ = [
     "LATENCY_SAMPLES",
     "RATE_WINDOW_S",
@@ -48,6 +50,13 @@ class LinkStats:
     connect_attempts: int = 0  # CONNECT_BASE requests (unanswered ones are not counted as timeouts)
     connects: int = 0  # successful CONNECT_BASE answers
     disconnects: int = 0  # connections lost (a request failed every attempt)
+    # The fate of each request that matters (configuration, SYSTEM_UP, polling; §11.6):
+    tracked_requests: int = 0  # such requests started (first attempts)
+    answered_requests: int = 0  # answered (OK, or an ERROR that is an answer)
+    superseded: int = 0  # periodic ones that failed and were replaced by their next period
+    abandoned_at_disconnect: int = 0  # in flight when the base was declared disconnected
+    lost_requests: int = 0  # given up while the base still counted as connected (should stay 0)
+    line_fault_bits: Counter[int] = field(default_factory=Counter)  # line-fault ERRORs by bit
     _send_times: deque[float] = field(default_factory=deque)
     _latencies: deque[float] = field(default_factory=lambda: deque(maxlen=LATENCY_SAMPLES))
 
@@ -55,6 +64,12 @@ class LinkStats:
         self.requests += 1
         self._send_times.append(now)
         self._trim(now)
+
+    def count_line_fault(self, code: int) -> None:
+        """An ERROR code below 0x0100: count each of its bits (0x10, 0x20, 0x40, 0x80)."""
+        for bit in LINE_FAULT_BIT_NAMES:
+            if code & bit:
+                self.line_fault_bits[bit] += 1
 
     def count_answer(self, latency_s: float) -> None:
         self.answers += 1

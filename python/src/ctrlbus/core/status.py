@@ -60,6 +60,9 @@ def json_status(session: CoreSession, since_seq: int = 0) -> dict[str, Any]:
             "errors_by_code": link["errors_by_code"],
             "watchdog_trips": link["watchdog_trips"],
             "disconnects": stats["disconnects"],
+            "lost_requests": stats["lost_requests"],
+            "superseded": stats["superseded"],
+            "line_faults_by_bit": stats["line_faults_by_bit"],
         },
         "events": [event for event in snap["events"] if event["seq"] > since_seq],
     }
@@ -113,6 +116,11 @@ def render_screen(session: CoreSession, note: str | None = None) -> str:
             f"hardware {base['hardware_version']} serial {base['serial']}  "
             f"{base['shape']} r {base['radius_mm']:.0f} mm ({base['config_source']})"
         )
+        for source, view in base["views"].items():
+            lines.append(
+                f"  {source:<17} r {view['radius_mm']:.0f} mm, {view['distance_sensors']} distance sensors, "
+                f"{view['bumpers']} bumpers, {view['cliffs']} cliffs"
+            )
     pose = snap["pose"]
     command = snap["command"]
     lines.append(f"pose      x {pose['x_mm']:9.1f} mm  y {pose['y_mm']:9.1f} mm  θ {pose['theta_deg']:7.2f}°")
@@ -153,7 +161,8 @@ def render_screen(session: CoreSession, note: str | None = None) -> str:
     lines.append(
         f"link      {link['requests']} requests, {link['requests_per_s']:.1f}/s  latency p50 "
         f"{_number(link['latency_p50_ms'], 2, ' ms')} p99 {_number(link['latency_p99_ms'], 2, ' ms')}  "
-        f"timeouts {link['timeouts']} retries {link['retries']}"
+        f"timeouts {link['timeouts']} retries {link['retries']}  "
+        f"lost {stats['lost_requests']} superseded {stats['superseded']}"
     )
     lines.append(
         f"          checksum failures {link['checksum_failures']} resyncs {link['resyncs']} "

@@ -33,6 +33,7 @@ from ctrlbus.base import (
 from ctrlbus.errors import BinaryConfigError, UsageError
 from ctrlbus.link import DEFAULT_BAUD, Link, PtyLink, TcpServerLink
 from ctrlbus.ports import serve_link
+from ctrlbus.quirks import Quirks, parse_quirks
 from ctrlbus.sim.base import SimulatedBase
 from ctrlbus.sim.description import load_base_description
 from ctrlbus.sim.room import load_room
@@ -62,6 +63,7 @@ class SimSettings:
     # The stack's wheel-speed limit (mm/s), applied with the robot's wheel track so that a limited
     # command keeps its curvature. None: the description's max_wheel_speed_mm_s; 0: no limit.
     max_wheel_mm_s: float | None = None
+    quirks: Quirks | str = Quirks.NONE  # "reference": imitate the reference firmware (ctrlbus.quirks)
 
 
 def read_binary_config(path: str | Path) -> bytes:
@@ -105,6 +107,7 @@ def build_simulated_stack(settings: SimSettings) -> tuple[SimulatedBase, BaseSta
         frame_timeout_s=settings.frame_timeout_s,
         reference_checksum_code=settings.reference_checksum_code,
         limits=robot_limits(world, limit),
+        quirks=parse_quirks(settings.quirks),
     )
     sim = SimulatedBase(world, binary_config=blob, time_scale=scale, seed=settings.seed)
     return sim, BaseStack(sim, config)

@@ -123,6 +123,10 @@ SNAPSHOT: Spec = {
             "shape": ("enum", ("circle", "square")),
             "radius_mm": "num",
             "config_source": ("enum", ("GET_BASE_CONF", "GET_BASE_CONF_ADV")),
+            "views?": (
+                "map",
+                {"radius_mm": "num", "distance_sensors": "int", "bumpers": "int", "cliffs": "int"},
+            ),
         },
     ),
     "limits": {"vx_mps": "num", "omega_radps": "num"},
@@ -176,6 +180,9 @@ SNAPSHOT: Spec = {
         "timeouts": "int",
         "watchdog_trips": "int",
         "retries": "int",
+        "lost_requests?": "int",
+        "superseded?": "int",
+        "line_faults_by_bit?": ("map", "int"),
     },
     "sim?": SIM,
 }

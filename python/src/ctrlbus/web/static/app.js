@@ -196,6 +196,8 @@
     setValue("link-resyncs", l.resyncs);
     setValue("link-timeouts", l.timeouts);
     setValue("link-retries", l.retries);
+    setValue("link-lost", l.lost_requests);
+    setValue("link-superseded", l.superseded);
     setValue("link-watchdog", l.watchdog_trips);
     setValue("link-connects", conn.connects);
 
