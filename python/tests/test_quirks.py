@@ -12,7 +12,8 @@ from typing import Any
 import pytest
 
 from ctrlbus import binconf
-from ctrlbus.base import REFERENCE_LOW_BATTERY_CODE, BaseConfig, BaseStack
+from ctrlbus.base import BaseConfig, BaseStack
+from ctrlbus.constants import REFERENCE_LOW_BATTERY_CODE
 from ctrlbus.core import CoreSession
 from ctrlbus.errors import UsageError
 from ctrlbus.faults import FaultFilter, FaultSpec, fault_models
