@@ -63,6 +63,7 @@ EXCHANGES = {FULL: 100_000, SMOKE: 2_000}
 MODES = {
     "frames": "request fed whole (a DMA or ring-buffer reader), then one poll",
     "bytes": "request fed byte by byte (a UART interrupt per byte), then one poll",
+    "polled": "one byte fed, then a poll, for every byte (a main loop polling faster than bytes arrive)",
 }
 PROFILE_TOP = 8
 

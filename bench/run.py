@@ -183,9 +183,13 @@ def noisy(frames: list[bytes], *, ber: float = NOISE_BER, seed: int = 7) -> Nois
 BYTE_GOAL = 0.6  # byte by byte, any level and stream
 CHUNK_GOALS = {("O2", "clean"): 0.10, ("O2", "noisy"): 0.15, ("Os", "clean"): 0.30, ("Os", "noisy"): 0.30}
 # Our decoder's harness modes: what each feeds per call.
-CTRLBUS_MODES = {"bytes": "byte by byte (ctrlbus_decoder_feed)", "chunks": "in 64-byte chunks"}
+CTRLBUS_MODES = {
+    "push": "byte by byte (ctrlbus_decoder_push)",
+    "bytes": "byte by byte through feed (ctrlbus_decoder_feed of 1 byte, then next)",
+    "chunks": "in 64-byte chunks (ctrlbus_decoder_feed)",
+}
 # The byte-by-byte row of the table: the byte API a UART interrupt uses.
-BYTE_MODE = "bytes"
+BYTE_MODE = "push"
 
 
 @benchmark(
@@ -323,6 +327,7 @@ def c_parser_cost(ctx: BenchContext, opts: Options) -> Outcome:
                 )
     details = {
         "builds": {key: shlex.join(["gcc", *flags]) for key, flags in builds.items()},
+        "byte_mode": BYTE_MODE,
         "peer_build_note": "each MAVLink binary calls one parser API from exactly one place, as a "
         "MAVLink user's receive loop does, so gcc inlines MAVLink's static inline parser",
         "ctrlbus_profile_clean_per_byte": profile,

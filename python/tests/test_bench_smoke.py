@@ -93,7 +93,7 @@ def test_c_parser_cost_figures(smoke: tuple[Path, dict[str, dict[str, Any]]]) ->
     if result["status"] == "measured":
         for variant in ("clean", "noisy"):
             for level in levels:
-                for mode in ("bytes", "chunks"):
+                for mode in ("push", "bytes", "chunks"):
                     ours = f[f"{variant}_{level}_ctrlbus_{mode}_ipb"]
                     assert ours > 0
                     expected = ours / f[f"{variant}_{level}_mavlink_parse_char_ipb"]
@@ -101,7 +101,7 @@ def test_c_parser_cost_figures(smoke: tuple[Path, dict[str, dict[str, Any]]]) ->
                         expected, rel=1e-2
                     )
         for level in levels:
-            for mode in ("bytes", "chunks"):
+            for mode in ("push", "bytes", "chunks"):
                 assert reports["clean"][f"{level}_ctrlbus_{mode}"]["frames"] == f["ctrlbus_frames"]
 
 
@@ -235,7 +235,7 @@ def test_base_exchange_figures(smoke: tuple[Path, dict[str, dict[str, Any]]]) ->
     f = result["figures"]
     assert f["exchanges"] > 0 and f["request_bytes"] == 17 and f["answer_bytes"] in (18, 22)
     for level in ("O2", "Os"):
-        for mode in ("frames", "bytes"):
+        for mode in ("frames", "bytes", "polled"):
             assert f[f"{level}_{mode}_instructions_per_exchange"] > 0
             report = result["details"]["harness_reports"][level][mode]
             assert report["exchanges"] == f["exchanges"]

@@ -81,7 +81,7 @@
  * (a main loop stalled longer than the frame timeout while a request is arriving can time that
  * request out; the Core then sends it again).
  *
- * Footprint: ctrlbus_base_t is 60 bytes on a 32-bit MCU (scripts/size.sh prints it), besides the
+ * Footprint: ctrlbus_base_t is 64 bytes on a 32-bit MCU (scripts/size.sh prints it), besides the
  * caller's rx_ring, frame_buffer and the optional health and command storage. ctrlbus_base_poll()
  * needs about 500 bytes of C stack on a Cortex-M3 plus what the handlers use (the answer struct
  * of the request being answered, up to GET_BASE_CONF's 272 bytes, lives there while it is
