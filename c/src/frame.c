@@ -987,8 +987,8 @@ static ctrlbus_rx_t push_last_byte(ctrlbus_decoder_t *d, uint8_t byte, ctrlbus_f
 /* A byte that arrives after the buffered candidate went stale: the timeout comes first, and its
  * results (the failure, then what the rescan of the stale bytes finds) come out ahead of the byte,
  * which waits at buffer[end] until they have been taken (STATE_HELD; resume() takes it). */
-RARE static ctrlbus_rx_t push_after_timeout(ctrlbus_decoder_t *d, uint8_t byte,
-                                                   uint32_t now_ms, ctrlbus_frame_t *frame)
+RARE static ctrlbus_rx_t push_after_timeout(ctrlbus_decoder_t *d, uint8_t byte, uint32_t now_ms,
+                                            ctrlbus_frame_t *frame)
 {
     d->complete_at = 0;
     if (d->end == d->max_frame) {
@@ -1012,7 +1012,7 @@ RARE static ctrlbus_rx_t push_after_timeout(ctrlbus_decoder_t *d, uint8_t byte,
 /* Everything push_slow() does not settle itself (garbage, a failure, an empty frame, a full buffer,
  * an oversize length): the general path, as a feed of one byte and the first result after it. */
 RARE static ctrlbus_rx_t push_general(ctrlbus_decoder_t *d, uint8_t byte, uint32_t now_ms,
-                                             ctrlbus_frame_t *frame)
+                                      ctrlbus_frame_t *frame)
 {
     d->complete_at = 0;
     (void)ctrlbus_decoder_feed(d, &byte, 1u, now_ms);
@@ -1061,16 +1061,16 @@ ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte,
         if ((byte | 0x40u) != CTRLBUS_FLAG_LONG) {
             return push_general(d, byte, now_ms, frame); /* garbage */
         }
-        /* a flag: a candidate starts (start == end == 0, d->checksum == 0). A long frame's first
-         * length byte can take the inline path. */
-        arm = byte == CTRLBUS_FLAG_LONG ? LONG_HEADER_ARMED : 0u;
+        /* a flag: a candidate starts (nothing buffered: start == end == 0, d->checksum == 0). A
+         * long frame's first length byte can take the inline path. */
+        arm = byte == CTRLBUS_FLAG_LONG && start == 0 ? LONG_HEADER_ARMED : 0u;
     } else {
         /* a byte behind a flag, the candidate's size not known yet */
         const uint8_t *cand = d->buffer + start;
         uint32_t have = end - start;
         uint32_t header = header_size(cand[0]);
         if (end == d->max_frame || have >= header) {
-            return push_general(d, byte, now_ms, frame); /* full, or not armable (see arm_inline_path) */
+            return push_general(d, byte, now_ms, frame); /* a full buffer, or not armable */
         }
         arm = 0;
         if (have + 1u == header) {
@@ -1078,7 +1078,8 @@ ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte,
             uint32_t len_field = header == 2u ? byte : (cand[1] | (uint32_t)byte << 8);
             uint32_t size = header + len_field + 1u;
             if (len_field == 0 || size > d->max_frame - start) {
-                return push_general(d, byte, now_ms, frame); /* empty or oversize */
+                /* empty, oversize, or not fitting the buffer where it starts */
+                return push_general(d, byte, now_ms, frame);
             }
             arm = start + size;
         }
