@@ -311,7 +311,9 @@ size_t ctrlbus_base_feed(ctrlbus_base_t *base, const uint8_t *data, size_t len);
  * in the handlers' calls and in ctrlbus_base_counters(). A write callback that fails cuts that
  * answer short; the stack carries on with the next.
  * Not ISR-safe (main loop only). Cost: the decoder's cost for the bytes taken (O(1) per byte on a
- * clean link; frame.h gives the worst case), plus for each request its handler and the answer's
+ * clean link; frame.h gives the worst case: a run of fewer than 16 bytes in the ring goes through
+ * ctrlbus_decoder_push() one byte at a time, a longer one through one ctrlbus_decoder_feed(),
+ * whichever costs less), plus for each request its handler and the answer's
  * size in byte visits (a few write calls per field); no work beyond the ring's content at entry. */
 void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms);
 
