@@ -423,12 +423,16 @@ def python_throughput(ctx: BenchContext, opts: Options) -> Outcome:
             }
         )
     r = ratio(ours_mbps, peer_mbps)
+    facts = machine_facts()
+    fastcrc = facts.get("fastcrc", "not installed")
+    crc = "pure Python" if fastcrc == "not installed" else f"fastcrc {fastcrc} (compiled)"
     rows = [
         [
             f"{len(ours_capture.data) / 1e6:.1f} MB stream, {FEED_CHUNK}-byte reads",
             "≥ 10 × pymavlink",
             fmt(ours_mbps, 2),
-            f"{fmt(peer_mbps, 2)} (pymavlink parse_buffer)",
+            f"{fmt(peer_mbps, 2)} (pymavlink {facts.get('pymavlink')} parse_buffer, the Python dialect "
+            f"mavgen generated, CRC from {crc})",
             fmt(r, 2),
             verdict(None if r is None else r >= 10.0),
         ]
@@ -531,7 +535,8 @@ def garbage_recovery(ctx: BenchContext, opts: Options) -> Outcome:
                 f"{label}: {stream.bursts} bursts, {ref.intact_sent:,} valid frames",
                 "≥ 99.9 %",
                 "pending" if ours is None else f"{ours.percent:.3f} %",
-                f"{ref.percent:.3f} % (reference receiver model)",
+                f"{ref.percent:.3f} % (reference receiver model, bench/refmodel.py: no backtracking, "
+                "no timeout)",
                 "pending" if ours is None else f"false accepts: {ours.false_accepts} vs {ref.false_accepts}",
                 verdict(None if ours is None else ours.percent >= 99.9),
             ]
