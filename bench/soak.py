@@ -731,7 +731,7 @@ def run(ctx: BenchContext) -> SoakOutcome:
             f"valid requests the base's decoder recovered (of {valid:,}, same stream)",
             f"≥ {RECOVERY_GOAL_PCT} %",
             f"{ours_pct:.3f} %",
-            f"{theirs_pct:.3f} % (reference receiver model)",
+            f"{theirs_pct:.3f} % (reference receiver model, bench/refmodel.py: no backtracking, no timeout)",
             f"false accepts: {ours_false} vs {theirs_false}",
             "yes" if ours_pct >= RECOVERY_GOAL_PCT else "**no**",
         ],
