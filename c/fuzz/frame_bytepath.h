@@ -3,7 +3,7 @@
  * byte-by-byte scan alone) and under other names, so that a fuzz target can run both side by side
  * and require the same results from them: the byte path is the decoder as first written, the bulk
  * path an optimisation that must not change a thing. Same types and contracts as ctrlbus/frame.h.
- * The lean_ twin is frame.c at CTRLBUS_DECODER_FAST 1, the level size-optimised builds get. */
+ * The lean_ twin is frame.c at CTRLBUS_DECODER_FAST 2, the level size-optimised builds get. */
 #ifndef CTRLBUS_FUZZ_FRAME_BYTEPATH_H
 #define CTRLBUS_FUZZ_FRAME_BYTEPATH_H
 

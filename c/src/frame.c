@@ -264,15 +264,20 @@ int32_t ctrlbus_frame_encode(uint8_t *out, size_t out_size, uint8_t cmd, const u
 
 /* ---- decoder -------------------------------------------------------------------------------- */
 
-/* The bulk path (see CTRLBUS_DECODER_FAST in frame.h): 0 = off; 1 = take_bulk() in the general
- * loop (the default in builds optimised for size, which are MCU firmware builds); 2 = that plus the
- * shortcuts for the most common feeds (the default otherwise). */
+/* The bulk path (see CTRLBUS_DECODER_FAST in frame.h): 0 = off; 1 = on, with the shortcuts for
+ * the most common feeds (the default); 2 = on without the shortcuts, take_bulk() in the general
+ * loop alone (the default in builds optimised for size, which are MCU firmware builds). */
 #ifndef CTRLBUS_DECODER_FAST
 #if defined(__OPTIMIZE_SIZE__)
-#define CTRLBUS_DECODER_FAST 1
-#else
 #define CTRLBUS_DECODER_FAST 2
+#else
+#define CTRLBUS_DECODER_FAST 1
 #endif
+#endif
+#if CTRLBUS_DECODER_FAST == 1
+#define DECODER_SHORTCUTS 1
+#else
+#define DECODER_SHORTCUTS 0
 #endif
 
 /* Inlining hints for the bulk path, for GCC and clang (other compilers decide alone; without the
@@ -748,7 +753,7 @@ OUT_OF_LINE static size_t feed_bytes(ctrlbus_decoder_t *d, const uint8_t *data, 
     return len;
 }
 
-#if CTRLBUS_DECODER_FAST >= 2
+#if DECODER_SHORTCUTS
 /* ctrlbus_decoder_feed() for a usable decoder with no result pending, no rescan due and some bytes:
  * one take_bulk() step, then the general path for whatever remains. */
 OUT_OF_LINE static size_t feed_bulk(ctrlbus_decoder_t *d, const uint8_t *data, size_t len,
@@ -773,7 +778,7 @@ OUT_OF_LINE static size_t feed_bulk(ctrlbus_decoder_t *d, const uint8_t *data, s
 }
 #endif
 
-#if CTRLBUS_DECODER_FAST >= 2
+#if DECODER_SHORTCUTS
 /* A feed of one byte (a UART interrupt's), in the cases that need none of take_bulk()'s rarer
  * steps: it starts a candidate in an empty buffer, extends one (its header not yet complete, or
  * complete with an acceptable size), or completes one as a frame with a command. Returns false,
@@ -830,7 +835,7 @@ size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, siz
     if (data != NULL && len != 0) {
         d->complete_at = 0; /* push()'s inline path waits until push_slow() has looked again */
     }
-#if CTRLBUS_DECODER_FAST >= 2
+#if DECODER_SHORTCUTS
     if (data != NULL && len != 0 && (d->state & STATE_WAITING) == 0) {
         /* The most common cases, settled right here: nothing buffered, and the input starts with
          * a whole valid frame with a command, or with the start of a frame that goes on beyond
@@ -902,7 +907,7 @@ IN_LINE static ctrlbus_rx_t hand_out(ctrlbus_decoder_t *d, ctrlbus_frame_t *fram
     return rx;
 }
 
-#if CTRLBUS_DECODER_FAST >= 2
+#if DECODER_SHORTCUTS
 /* ctrlbus_decoder_next() when nothing is pending but a rescan is due: out of line, so that handing
  * out a pending result saves no registers. (Without the bulk path, one call of hand_out() is
  * smaller.) */
@@ -920,7 +925,7 @@ ctrlbus_rx_t ctrlbus_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *f
         return CTRLBUS_RX_NONE;
     }
     ctrlbus_rx_t rx = (ctrlbus_rx_t)(d->state & STATE_PENDING_MASK);
-#if CTRLBUS_DECODER_FAST >= 2
+#if DECODER_SHORTCUTS
     if (rx != CTRLBUS_RX_NONE) {
         clear_flag(d, STATE_PENDING_MASK);
         return hand_out(d, frame, rx);

@@ -249,17 +249,18 @@ void ctrlbus_decoder_reset(ctrlbus_decoder_t *decoder);
  * the ctrlbus_decoder_next() calls after it. Nothing depends on history beyond the buffer.
  *
  * Speed: frame.c has a bulk path, set by the compile-time option CTRLBUS_DECODER_FAST: 0 = off;
- * 1 = the default when compiling with -Os (MCU firmware): a feed takes the bytes of a frame whose
- * length is known in one step (it skips garbage up to the next flag in a tight loop, copies the
- * frame into the buffer and computes its checksum a machine word at a time); 2 = the default
- * otherwise: that plus shortcuts for the most common feeds (a whole frame, a frame's start).
- * Only a header split between feeds, an oversize length, a failure and the rescan after it go
- * byte by byte. The results are the same at every level (the fuzz target c/fuzz/fuzz_decoder.c
- * compares them). For one byte at a time, use ctrlbus_decoder_push() rather than a feed of 1.
+ * 1 = on (the default): a feed takes the bytes of a frame whose length is known in one step (it
+ * skips garbage up to the next flag in a tight loop, copies the frame into the buffer and computes
+ * its checksum a machine word at a time), with shortcuts for the most common feeds (a whole frame,
+ * a frame's start); 2 = on without the shortcuts, about half the code (the default when compiling
+ * with -Os, as MCU firmware is). Only a header split between feeds, an oversize length, a failure
+ * and the rescan after it go byte by byte. The results are the same at every level (the fuzz
+ * target c/fuzz/fuzz_decoder.c compares them). For one byte at a time, use
+ * ctrlbus_decoder_push() rather than a feed of 1.
  * Measured with callgrind on x86-64 (bench/c/ctrlbus_parse.c, a Core<->base session, the caller's
  * loop included; docs/performance.md has the current figures): fed in 64-byte chunks about 9
- * instructions per byte at -O2 (level 2) and 12 at -Os (level 1), against about 68 without the
- * bulk path. On a Cortex-M0+ at -Os, level 1 adds about 0.55 KB of code and level 2 about 1.1 KB;
+ * instructions per byte at -O2 (level 1) and 12 at -Os (level 2), against about 68 without the
+ * bulk path. On a Cortex-M0+ at -Os, level 2 adds about 0.55 KB of code and level 1 about 1.1 KB;
  * set CTRLBUS_DECODER_FAST=0 where flash matters more than cycles. */
 size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, size_t len,
                             uint32_t now_ms);
