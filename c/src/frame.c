@@ -366,12 +366,12 @@ int32_t ctrlbus_decoder_init(ctrlbus_decoder_t *decoder, uint8_t *buffer, size_t
     }
     decoder->buffer = buffer;
     decoder->stats = stats;
-#if SIZE_MAX > CTRLBUS_FRAME_MAX
-    decoder->max_frame =
-        buffer_size > CTRLBUS_FRAME_MAX ? CTRLBUS_FRAME_MAX : (uint32_t)buffer_size;
-#else /* a 16-bit size_t (AVR): no buffer can exceed the largest frame */
-    decoder->max_frame = (uint32_t)buffer_size;
+#if SIZE_MAX > CTRLBUS_FRAME_MAX /* a 16-bit size_t cannot exceed it (AVR) */
+    if (buffer_size > CTRLBUS_FRAME_MAX) {
+        buffer_size = CTRLBUS_FRAME_MAX;
+    }
 #endif
+    decoder->max_frame = (uint32_t)buffer_size;
     decoder->timeout_ms = timeout_ms;
     decoder->last_byte_ms = 0;
     if (stats != NULL) {
@@ -623,7 +623,7 @@ IN_LINE static uint8_t copy_xor(uint8_t *dst, const uint8_t *src, size_t n, uint
             uint32_t word;
             memcpy(&word, src, 4u);
             memcpy(dst, &word, 4u);
-            acc ^= (size_t)word; /* only where size_t is wider than 32 bits */
+            acc ^= (size_t)word; /* only compiled in with a 64-bit size_t */
             src += 4;
             dst += 4;
             n -= 4u;
@@ -703,7 +703,7 @@ IN_LINE static size_t take_bulk(ctrlbus_decoder_t *d, const uint8_t *in, size_t 
     if (take == need) {
         *rx = d->checksum == 0 && len_field != 0 ? yield_frame(d) : RX_SETTLE_BY_SCAN;
     }
-    return (size_t)take;
+    return (size_t)take; /* at most n */
 }
 
 /* For RX_SETTLE_BY_SCAN: scan() settles the complete candidate (a checksum failure with its
@@ -857,7 +857,7 @@ size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, siz
                 d->end = size;
                 d->last_byte_ms = now_ms;
                 hold(d, yield_frame(d));
-                return (size_t)size;
+                return (size_t)size; /* at most len */
             }
         }
         if (len == 1u && take_one(d, data[0], now_ms)) {
