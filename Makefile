@@ -99,7 +99,8 @@ demo:
 size: setup
 	@scripts/size.sh
 
-bench: c-build
+# Benchmarks build what they measure themselves, as Release (-O2 and -Os): not the Debug c-build.
+bench: setup
 	@$(PY) bench/run.py
 
 # Each libFuzzer target until FUZZ_RUNS executions (default 10 M) or for FUZZ_SECONDS at most

@@ -21,7 +21,15 @@ from pathlib import Path
 
 from common import BenchContext, BenchError, run_command
 
-CFLAGS = ["-O2", "-g0", "-Wall"]
+# Release builds, as users build: -O2 for a host, -Os for MCU firmware. Every C figure is given
+# for both (the figure keys and table rows name the level).
+OPT_LEVELS = ("-O2", "-Os")
+CFLAGS = ["-g0", "-Wall"]
+
+
+def opt_key(opt: str) -> str:
+    """The level as it appears in figure keys: "-O2" -> "O2"."""
+    return opt.lstrip("-")
 
 
 @dataclass(frozen=True)
@@ -38,14 +46,26 @@ def require_tools() -> None:
             raise BenchError(f"{tool} not found (scripts/setup.sh installs it)")
 
 
+def compile_flags(opt: str, std: str = "c99", defines: tuple[str, ...] = ()) -> list[str]:
+    """The gcc flags a harness is built with (recorded in the results)."""
+    return [f"-std={std}", opt, *CFLAGS, *(f"-D{d}" for d in defines)]
+
+
 def compile_harness(
-    ctx: BenchContext, name: str, sources: list[Path], include_dirs: list[Path], std: str = "c99"
+    ctx: BenchContext,
+    name: str,
+    sources: list[Path],
+    include_dirs: list[Path],
+    std: str = "c99",
+    opt: str = "-O2",
+    defines: tuple[str, ...] = (),
 ) -> Path:
-    """gcc -O2 the harness into the context's work directory; returns the executable."""
+    """gcc the harness (Release: opt is -O2 or -Os) into the context's work directory; returns the
+    executable, named after name and the level."""
     require_tools()
-    out = ctx.work_dir / "bin" / name
+    out = ctx.work_dir / "bin" / f"{name}{opt}"
     out.parent.mkdir(parents=True, exist_ok=True)
-    argv = ["gcc", f"-std={std}", *CFLAGS]
+    argv = ["gcc", *compile_flags(opt, std, defines)]
     argv += [f"-I{d}" for d in include_dirs]
     argv += ["-o", str(out), *(str(s) for s in sources)]
     run_command(ctx, argv)

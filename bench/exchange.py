@@ -18,7 +18,15 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from callgrind import HarnessRun, callgrind, compile_harness, top_functions
+from callgrind import (
+    OPT_LEVELS,
+    HarnessRun,
+    callgrind,
+    compile_flags,
+    compile_harness,
+    opt_key,
+    top_functions,
+)
 from common import (
     BENCH_DIR,
     C_INCLUDE,
@@ -55,6 +63,7 @@ EXCHANGES = {FULL: 100_000, SMOKE: 2_000}
 MODES = {
     "frames": "request fed whole (a DMA or ring-buffer reader), then one poll",
     "bytes": "request fed byte by byte (a UART interrupt per byte), then one poll",
+    "polled": "one byte fed, then a poll, for every byte (a main loop polling faster than bytes arrive)",
 }
 PROFILE_TOP = 8
 
@@ -115,67 +124,82 @@ def run(ctx: BenchContext) -> Findings:
     wire = [request_frame(request) for request in requests]
     stream = ctx.work_dir / "requests.bin"
     stream.write_bytes(b"".join(wire))
-    binary = compile_harness(ctx, "base_exchange", [HARNESS, *sorted(C_SRC.glob("*.c"))], [C_INCLUDE])
-
-    answers_file = ctx.work_dir / "answers.bin"
-    run_command(ctx, [str(binary), "dump", str(stream), str(answers_file)])
-    answer_size = check_answers(requests, answers_file.read_bytes())
-
-    baseline = callgrind(ctx, binary, "baseline", stream)
-    runs = {mode: callgrind(ctx, binary, mode, stream) for mode in MODES}
+    sources = [HARNESS, *sorted(C_SRC.glob("*.c"))]
     request_size = len(wire[0])
-    figures: dict[str, Any] = {
-        "exchanges": count,
-        "request_bytes": request_size,
-        "answer_bytes": answer_size,
-    }
-    for mode, harness_run in runs.items():
-        report = harness_run.report
-        if report["exchanges"] != count or report["answer_bytes"] != count * answer_size:
-            raise BenchError(
-                f"{mode}: {report['answer_bytes']} answer bytes for {report['exchanges']} exchanges"
-            )
-        cost = per_exchange(harness_run, baseline)
-        figures[f"{mode}_instructions_per_exchange"] = round(cost, 1)
-        figures[f"{mode}_instructions_per_wire_byte"] = round(cost / (request_size + answer_size), 2)
-    writes = runs["frames"].report["writes"] / count
-    max_write = runs["frames"].report["max_write"]
-    figures["write_calls_per_answer"] = round(writes, 2)
-    figures["largest_write_bytes"] = max_write
-
-    # Where the instructions go, per exchange (callgrind's per-function self cost).
-    stream_bytes = runs["frames"].report["bytes"]
-    profile = {
-        mode: [
-            (name, round(per_byte * stream_bytes / count, 1))
-            for name, per_byte in top_functions(ctx, harness_run, PROFILE_TOP)
-        ]
-        for mode, harness_run in runs.items()
-    }
-
+    figures: dict[str, Any] = {"exchanges": count, "request_bytes": request_size}
+    instructions: dict[str, dict[str, int]] = {}
+    reports: dict[str, dict[str, dict[str, int]]] = {}
+    profile: dict[str, dict[str, list[tuple[str, float]]]] = {}
+    builds: dict[str, str] = {}
     rows: list[list[str]] = []
-    for mode, label in MODES.items():
-        rows.append(
-            [
-                f"one exchange ({request_size} B request, {answer_size} B answer): {label}",
-                "published",
-                f"{figures[f'{mode}_instructions_per_exchange']:,.0f} instructions "
-                f"({figures[f'{mode}_instructions_per_wire_byte']:.1f} per byte on the wire)",
-                "",
-                "",
-                "yes",
+    for opt in OPT_LEVELS:
+        level = opt_key(opt)
+        binary = compile_harness(ctx, "base_exchange", sources, [C_INCLUDE], opt=opt)
+        builds[level] = " ".join(["gcc", *compile_flags(opt)])
+
+        answers_file = ctx.work_dir / f"answers{opt}.bin"
+        run_command(ctx, [str(binary), "dump", str(stream), str(answers_file)])
+        answer_size = check_answers(requests, answers_file.read_bytes())
+        figures["answer_bytes"] = answer_size
+
+        baseline = callgrind(ctx, binary, "baseline", stream)
+        runs = {mode: callgrind(ctx, binary, mode, stream) for mode in MODES}
+        for mode, harness_run in runs.items():
+            report = harness_run.report
+            if report["exchanges"] != count or report["answer_bytes"] != count * answer_size:
+                raise BenchError(
+                    f"{mode} ({opt}): {report['answer_bytes']} answer bytes, {report['exchanges']} exchanges"
+                )
+            cost = per_exchange(harness_run, baseline)
+            figures[f"{level}_{mode}_instructions_per_exchange"] = round(cost, 1)
+            figures[f"{level}_{mode}_instructions_per_wire_byte"] = round(
+                cost / (request_size + answer_size), 2
+            )
+        writes = runs["frames"].report["writes"] / count
+        max_write = runs["frames"].report["max_write"]
+        figures["write_calls_per_answer"] = round(writes, 2)
+        figures["largest_write_bytes"] = max_write
+
+        # Where the instructions go, per exchange (callgrind's per-function self cost).
+        stream_bytes = runs["frames"].report["bytes"]
+        profile[level] = {
+            mode: [
+                (name, round(per_byte * stream_bytes / count, 1))
+                for name, per_byte in top_functions(ctx, harness_run, PROFILE_TOP)
             ]
+            for mode, harness_run in runs.items()
+        }
+        instructions[level] = {
+            "baseline": baseline.instructions,
+            **{m: r.instructions for m, r in runs.items()},
+        }
+        reports[level] = {"baseline": baseline.report, **{m: r.report for m, r in runs.items()}}
+
+        for mode, label in MODES.items():
+            rows.append(
+                [
+                    f"gcc {opt}: one exchange ({request_size} B request, {answer_size} B answer): {label}",
+                    "published",
+                    f"{figures[f'{level}_{mode}_instructions_per_exchange']:,.0f} instructions "
+                    f"({figures[f'{level}_{mode}_instructions_per_wire_byte']:.1f} per byte on the wire)",
+                    "",
+                    "",
+                    "yes",
+                ]
+            )
+        top = ", ".join(f"{name} {cost:,.0f}" for name, cost in profile[level]["frames"][:6])
+        rows.append(
+            [f"gcc {opt}: where they go (request fed whole), per exchange", "published", top, "", "", "yes"]
         )
-    top = ", ".join(f"{name} {cost:,.0f}" for name, cost in profile["frames"][:6])
-    rows.append(["where they go (request fed whole), per exchange", "published", top, "", "", "yes"])
     rows.append(
         [
             "the answer leaves through write() as",
             "no transmit buffer",
-            f"{writes:g} calls of at most {max_write} bytes (streamed field by field)",
+            f"{figures['write_calls_per_answer']:g} calls of at most {figures['largest_write_bytes']} bytes "
+            "(streamed field by field)",
             "",
             "",
-            "yes" if max_write < answer_size else "**no**",
+            "yes" if figures["largest_write_bytes"] < figures["answer_bytes"] else "**no**",
         ]
     )
     details: dict[str, Any] = {
@@ -183,8 +207,9 @@ def run(ctx: BenchContext) -> Findings:
         "sources": [str(path.relative_to(BENCH_DIR.parent)) for path in sorted(C_SRC.glob("*.c"))],
         "modes": MODES,
         "clock": "50 ms per request (20 Hz): the watchdog stays fed, nothing times out",
-        "instructions": {"baseline": baseline.instructions, **{m: r.instructions for m, r in runs.items()}},
-        "harness_reports": {"baseline": baseline.report, **{m: r.report for m, r in runs.items()}},
+        "builds": builds,
+        "instructions": instructions,
+        "harness_reports": reports,
         "profile_per_exchange": profile,
     }
     return Findings(MEASURED, figures, rows, [], details)

@@ -73,21 +73,22 @@ def _bar_chart(
 
 def _plot_c_parser_cost(result: dict[str, Any], img_dir: Path) -> Path:
     f = result["figures"]
-    variants = ["clean", "noisy"]
+    groups = [(v, level) for level in ("O2", "Os") for v in ("clean", "noisy")]
     series: list[tuple[str, list[float | None]]] = [
-        ("MAVLink mavlink_parse_char", [f.get(f"{v}_mavlink_parse_char_ipb") for v in variants]),
-        (
-            "MAVLink mavlink_frame_char_buffer",
-            [f.get(f"{v}_mavlink_frame_char_buffer_ipb") for v in variants],
-        ),
-        ("ctrlbus, byte by byte", [f.get(f"{v}_ctrlbus_bytes_ipb") for v in variants]),
-        ("ctrlbus, in chunks", [f.get(f"{v}_ctrlbus_chunks_ipb") for v in variants]),
+        (label, [f.get(f"{v}_{level}_{who}_ipb") for v, level in groups])
+        for label, who in (
+            ("MAVLink mavlink_parse_char (one call site)", "mavlink_parse_char"),
+            ("XOR state machine, inlined (floor)", "floor_inline"),
+            ("XOR state machine, a call per byte", "floor_call"),
+            ("ctrlbus, byte by byte", "ctrlbus_" + result["details"].get("byte_mode", "bytes")),
+            ("ctrlbus, in 64-byte chunks", "ctrlbus_chunks"),
+        )
     ]
     return _bar_chart(
         img_dir / "bench-c-parser-cost.png",
-        "C parser: instructions per byte (callgrind, gcc -O2)",
+        "C parser: instructions per byte (callgrind, Release builds)",
         "instructions / byte",
-        ["clean capture", "noisy capture"],
+        [f"{v}, gcc -{level}" for v, level in groups],
         series,
     )
 
@@ -126,9 +127,9 @@ def _plot_garbage_recovery(result: dict[str, Any], img_dir: Path) -> Path:
 
 
 def _plot_base_exchange(result: dict[str, Any], img_dir: Path) -> Path:
-    """Where one exchange's instructions go, per function (request fed whole)."""
+    """Where one exchange's instructions go, per function (request fed whole, gcc -O2)."""
     f = result["figures"]
-    profile = [(name, cost) for name, cost in result["details"]["profile_per_exchange"]["frames"]]
+    profile = [(name, cost) for name, cost in result["details"]["profile_per_exchange"]["O2"]["frames"]]
     fig, ax = plt.subplots(figsize=(7.5, 4.4), dpi=110)
     names = [name for name, _ in reversed(profile)]
     costs = [cost for _, cost in reversed(profile)]
@@ -145,7 +146,7 @@ def _plot_base_exchange(result: dict[str, Any], img_dir: Path) -> Path:
     ax.set_xlabel("instructions per exchange (callgrind, gcc -O2)")
     ax.set_title(
         f"C base stack, one SET_V_AND_GET_DEADRECKON exchange (request fed whole): "
-        f"{f['frames_instructions_per_exchange']:,.0f} instructions",
+        f"{f['O2_frames_instructions_per_exchange']:,.0f} instructions",
         fontsize=9,
     )
     ax.margins(x=0.15)

@@ -44,6 +44,7 @@ from common import (
     ensure_ctrlbus_importable,
     stop_process,
 )
+from endtoend import build_posix_base
 from refmodel import ReferenceModelDecoder
 from session import split_frames
 
@@ -108,7 +109,6 @@ DRIVE_PATTERN = [(0.3, 0.4), (0.8, 0.5), (0.2, 2.5), (-0.3, -1.0), (0.6, -2.0), 
 DRIVE_STEP_S = 4.0
 VIRTUAL_SLICE_S = 1.0
 
-POSIX_BASE = REPO / "build" / "c" / "examples" / "posix_base" / "posix_base"
 LISTEN_ANY = ["--listen", "127.0.0.1:0"]  # the base picks a free port and prints it
 # The bases' inter-byte timeout in the real-time runs: that of a base reading a UART at wire pace
 # (their default, 100 ms, is for a host behind a USB adapter, and a false header in a burst would
@@ -800,7 +800,7 @@ def run(ctx: BenchContext) -> SoakOutcome:
             f"valid requests the base's decoder recovered (of {valid:,}, same stream)",
             f"≥ {RECOVERY_GOAL_PCT} %",
             f"{ours_pct:.3f} %",
-            f"{theirs_pct:.3f} % (reference receiver model)",
+            f"{theirs_pct:.3f} % (reference receiver model, bench/refmodel.py: no backtracking, no timeout)",
             f"false accepts: {ours_false} vs {theirs_false}",
             "yes" if ours_pct >= RECOVERY_GOAL_PCT else "**no**",
         ],
@@ -843,7 +843,12 @@ def run(ctx: BenchContext) -> SoakOutcome:
 
     pending: list[str] = []
     realtime_spec = REALTIME_SPEC[mode]
-    c_base = [str(POSIX_BASE), *LISTEN_ANY, *REALTIME_BASE_OPTIONS] if POSIX_BASE.exists() else None
+    # The C base as benchmarks build it: Release, shared with end_to_end (build/bench/c-release).
+    build_error = ""
+    try:
+        c_base: list[str] | None = [str(build_posix_base(ctx)), *LISTEN_ANY, *REALTIME_BASE_OPTIONS]
+    except BenchError as exc:
+        c_base, build_error = None, str(exc).splitlines()[0]
     targets: list[tuple[str, str, list[str] | None]] = [
         ("c_base", "C host base (posix_base)", c_base),
         (
@@ -854,8 +859,7 @@ def run(ctx: BenchContext) -> SoakOutcome:
     ]
     for key, name, command in targets:
         if command is None:
-            built = POSIX_BASE.relative_to(REPO)
-            pending.append(f"the {name} is not built ({built}): its real-time run waits for it")
+            pending.append(f"the {name} did not build ({build_error}): its real-time run waits for it")
             rows.append([f"{name}, TCP, real time: exchanges/s", "published", "pending", "", "", "pending"])
             continue
         ctx.commands.append(shlex.join(command))

@@ -14,6 +14,8 @@
  *             ring-buffer receiver
  *   bytes     ctrlbus_base_feed() each request one byte at a time (a UART receive interrupt per
  *             byte), then ctrlbus_base_poll()
+ *   polled    ctrlbus_base_feed() one byte, then ctrlbus_base_poll(), for every byte (a main loop
+ *             that polls faster than bytes arrive: the poll finds one byte in the ring each time)
  *   dump      as frames, but the answers go to the file ANSWERS (to check them; not measured)
  *
  * The clock advances 50 ms per request (the Core's 20 Hz), so the watchdog stays fed and no
@@ -80,7 +82,7 @@ static int32_t set_velocity(void *context, const ctrlbus_set_v_and_get_deadrecko
     return CTRLBUS_OK;
 }
 
-typedef enum { MODE_BASELINE, MODE_FRAMES, MODE_BYTES } harness_mode_t;
+typedef enum { MODE_BASELINE, MODE_FRAMES, MODE_BYTES, MODE_POLLED } harness_mode_t;
 
 static int run(const unsigned char *data, size_t size, harness_mode_t mode, output_t *out, unsigned long *exchanges)
 {
@@ -120,11 +122,16 @@ static int run(const unsigned char *data, size_t size, harness_mode_t mode, outp
                 return 2;
             }
             ctrlbus_base_poll(&base, now_ms);
-        } else {
+        } else if (mode == MODE_BYTES) {
             for (size_t i = 0; i < len; i++) {
                 (void)ctrlbus_base_feed(&base, data + pos + i, 1u);
             }
             ctrlbus_base_poll(&base, now_ms);
+        } else {
+            for (size_t i = 0; i < len; i++) {
+                (void)ctrlbus_base_feed(&base, data + pos + i, 1u);
+                ctrlbus_base_poll(&base, now_ms);
+            }
         }
         pos += len;
         (*exchanges)++;
@@ -136,7 +143,7 @@ static int run(const unsigned char *data, size_t size, harness_mode_t mode, outp
 int main(int argc, char **argv)
 {
     if (argc < 3 || (strcmp(argv[1], "dump") == 0 && argc != 4)) {
-        fprintf(stderr, "usage: %s baseline|frames|bytes REQUESTS | dump REQUESTS ANSWERS\n", argv[0]);
+        fprintf(stderr, "usage: %s baseline|frames|bytes|polled REQUESTS | dump REQUESTS ANSWERS\n", argv[0]);
         return 2;
     }
     harness_mode_t mode;
@@ -148,6 +155,8 @@ int main(int argc, char **argv)
         mode = MODE_FRAMES;
     } else if (strcmp(argv[1], "bytes") == 0) {
         mode = MODE_BYTES;
+    } else if (strcmp(argv[1], "polled") == 0) {
+        mode = MODE_POLLED;
     } else if (strcmp(argv[1], "dump") == 0) {
         mode = MODE_FRAMES;
         out.dump = fopen(argv[3], "wb");

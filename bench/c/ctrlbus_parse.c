@@ -7,11 +7,12 @@
  *
  * MODE
  *   baseline  read the file and walk its bytes without decoding (the cost subtracted)
- *   bytes     ctrlbus_decoder_feed() one byte at a time, as a UART receive interrupt would
+ *   bytes     ctrlbus_decoder_feed() one byte at a time, each followed by ctrlbus_decoder_next()
+ *   push      ctrlbus_decoder_push() per byte, as a UART receive interrupt would: the byte API
  *   chunks    ctrlbus_decoder_feed() CHUNK bytes at a time, as a DMA or ring-buffer reader would
  *
- * Each feed is followed by ctrlbus_decoder_next() until it returns CTRLBUS_RX_NONE, the loop the
- * header documents. The decoder gets a 512-byte buffer (the reference base's receive buffer) and
+ * Each feed or push is followed by ctrlbus_decoder_next() until it returns CTRLBUS_RX_NONE (after a
+ * push, only when the push returned a result), the loops the header documents. The decoder gets a 512-byte buffer (the reference base's receive buffer) and
  * the default inter-byte timeout; the time stays 0, so nothing times out.
  *
  * Prints "bytes=N frames=F events=E chunk=C" so the caller can check the decoding was real.
@@ -25,7 +26,9 @@
 #include "ctrlbus/frame.h"
 
 #define DECODER_BUFFER 512u
+#ifndef CHUNK
 #define CHUNK 64u
+#endif
 
 /* The same walk over the bytes as the decoding loops, with the decoder replaced by a store the
  * compiler cannot drop. */
@@ -60,6 +63,32 @@ static void feed(ctrlbus_decoder_t *dec, const uint8_t *data, size_t len, tally_
     }
 }
 
+static void tally_add(tally_t *tally, ctrlbus_rx_t rx)
+{
+    if (rx == CTRLBUS_RX_FRAME) {
+        tally->frames++;
+    } else {
+        tally->events++;
+    }
+}
+
+static void push_all(const unsigned char *data, size_t size, tally_t *tally)
+{
+    uint8_t buffer[DECODER_BUFFER];
+    ctrlbus_decoder_t dec;
+    if (ctrlbus_decoder_init(&dec, buffer, sizeof buffer, CTRLBUS_DEFAULT_TIMEOUT_MS, NULL) != CTRLBUS_OK) {
+        fprintf(stderr, "ctrlbus_decoder_init failed\n");
+        exit(2);
+    }
+    ctrlbus_frame_t frame;
+    for (size_t i = 0; i < size; i++) {
+        for (ctrlbus_rx_t rx = ctrlbus_decoder_push(&dec, data[i], 0u, &frame); rx != CTRLBUS_RX_NONE;
+             rx = ctrlbus_decoder_next(&dec, &frame)) {
+            tally_add(tally, rx);
+        }
+    }
+}
+
 static void decode(const unsigned char *data, size_t size, size_t chunk, tally_t *tally)
 {
     uint8_t buffer[DECODER_BUFFER];
@@ -77,7 +106,7 @@ static void decode(const unsigned char *data, size_t size, size_t chunk, tally_t
 int main(int argc, char **argv)
 {
     if (argc != 3) {
-        fprintf(stderr, "usage: %s baseline|bytes|chunks FILE\n", argv[0]);
+        fprintf(stderr, "usage: %s baseline|bytes|push|chunks FILE\n", argv[0]);
         return 2;
     }
     size_t size = 0;
@@ -91,6 +120,8 @@ int main(int argc, char **argv)
         tally.frames = walk_bytes(data, size);
     } else if (strcmp(argv[1], "bytes") == 0) {
         decode(data, size, 1, &tally);
+    } else if (strcmp(argv[1], "push") == 0) {
+        push_all(data, size, &tally);
     } else if (strcmp(argv[1], "chunks") == 0) {
         chunk = CHUNK;
         decode(data, size, chunk, &tally);

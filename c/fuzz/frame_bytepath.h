@@ -2,7 +2,8 @@
 /* The decoder of frame.c built once more without its bulk path (CTRLBUS_DECODER_FAST 0, the
  * byte-by-byte scan alone) and under other names, so that a fuzz target can run both side by side
  * and require the same results from them: the byte path is the decoder as first written, the bulk
- * path an optimisation that must not change a thing. Same types and contracts as ctrlbus/frame.h. */
+ * path an optimisation that must not change a thing. Same types and contracts as ctrlbus/frame.h.
+ * The lean_ twin is frame.c at CTRLBUS_DECODER_FAST 2, the level size-optimised builds get. */
 #ifndef CTRLBUS_FUZZ_FRAME_BYTEPATH_H
 #define CTRLBUS_FUZZ_FRAME_BYTEPATH_H
 
@@ -14,6 +15,19 @@ size_t bytepath_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, si
                              uint32_t now_ms);
 void bytepath_decoder_tick(ctrlbus_decoder_t *decoder, uint32_t now_ms);
 ctrlbus_rx_t bytepath_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *frame);
+ctrlbus_rx_t bytepath_decoder_push(ctrlbus_decoder_t *decoder, uint8_t byte, uint32_t now_ms,
+                                   ctrlbus_frame_t *frame);
 bool bytepath_decoder_busy(const ctrlbus_decoder_t *decoder);
+
+
+int32_t lean_decoder_init(ctrlbus_decoder_t *decoder, uint8_t *buffer, size_t buffer_size,
+                          uint16_t timeout_ms, ctrlbus_decoder_stats_t *stats);
+size_t lean_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, size_t len,
+                         uint32_t now_ms);
+void lean_decoder_tick(ctrlbus_decoder_t *decoder, uint32_t now_ms);
+ctrlbus_rx_t lean_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *frame);
+bool lean_decoder_busy(const ctrlbus_decoder_t *decoder);
+ctrlbus_rx_t lean_decoder_push(ctrlbus_decoder_t *decoder, uint8_t byte, uint32_t now_ms,
+                               ctrlbus_frame_t *frame);
 
 #endif

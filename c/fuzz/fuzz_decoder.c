@@ -16,7 +16,14 @@
  *   B  the byte-path twin (frame_bytepath.h), fed the same cuts: every call must give what A's
  *      gave (bytes taken, results, frames, counters, busy).
  *   C  frame.c's decoder fed one byte per call at the same times: the same results and counters
- *      as A in the end, since the outcome must not depend on how the input is cut (§7.1). */
+ *      as A in the end, since the outcome must not depend on how the input is cut (§7.1).
+ *   D  frame.c's decoder through the byte API, ctrlbus_decoder_push() per byte at the same times
+ *      (its inline path and push_slow()), every result after it taken with next(): the same
+ *      results and counters as A; and a push while results wait must be refused (BUSY) and change
+ *      nothing.
+ *   E  the byte-path twin through its push, as D: the same again.
+ *   F  the lean twin (frame_lean.c: the bulk path at the level size-optimised builds get), fed the
+ *      same cuts as A: the same results and counters. */
 #include <string.h>
 
 #include "frame_bytepath.h"
@@ -35,7 +42,7 @@ typedef struct {
     uint64_t frame_bytes; /* bytes of the frames it handed out */
 } run_t;
 
-static fuzz_log_t log_a, log_c;
+static fuzz_log_t log_a, log_c, log_d, log_e, log_f;
 static uint32_t max_frame;
 
 static uint64_t frame_size(const ctrlbus_frame_t *frame)
@@ -142,14 +149,86 @@ static void feed_bytewise(run_t *c, const uint8_t *data, size_t len, uint32_t no
     check_accounting(c);
 }
 
-static void run_init(run_t *r, fuzz_log_t *log, uint16_t timeout, bool bytepath)
+/* Decoders D and E: the same bytes through the byte API. White-box: frame.c's STATE_WAITING bits
+ * (a result pending, a rescan due, a held byte). */
+#define FRAME_C_STATE_WAITING 0x97u
+
+typedef ctrlbus_rx_t (*push_fn)(ctrlbus_decoder_t *, uint8_t, uint32_t, ctrlbus_frame_t *);
+typedef ctrlbus_rx_t (*next_fn)(ctrlbus_decoder_t *, ctrlbus_frame_t *);
+
+static void drain_with(run_t *r, next_fn next)
+{
+    ctrlbus_frame_t frame;
+    for (ctrlbus_rx_t rx; (rx = next(&r->decoder, &frame)) != CTRLBUS_RX_NONE;) {
+        if (rx == CTRLBUS_RX_FRAME) {
+            fuzz_check_frame(&frame, r->buffer.buffer, max_frame);
+            r->frame_bytes += frame_size(&frame);
+        }
+        fuzz_log_add(r->log, rx, &frame);
+    }
+    fuzz_guarded_check(&r->buffer);
+}
+
+typedef size_t (*feed_fn)(ctrlbus_decoder_t *, const uint8_t *, size_t, uint32_t);
+
+/* Decoder F: one cut, fed and drained as the header's loop does. */
+static void feed_cut(run_t *r, feed_fn feed, next_fn next, const uint8_t *data, size_t len,
+                     uint32_t now)
+{
+    while (len > 0) {
+        size_t used = feed(&r->decoder, data, len, now);
+        FUZZ_CHECK(used <= len);
+        r->taken += used;
+        data += used;
+        len -= used;
+        drain_with(r, next);
+    }
+    check_accounting(r);
+}
+
+static ctrlbus_rx_t push_ours(ctrlbus_decoder_t *d, uint8_t byte, uint32_t now, ctrlbus_frame_t *f)
+{
+    return ctrlbus_decoder_push(d, byte, now, f);
+}
+
+static void push_bytewise(run_t *r, push_fn push, next_fn next, const uint8_t *data, size_t len,
+                          uint32_t now)
+{
+    for (size_t i = 0; i < len; i++) {
+        ctrlbus_frame_t frame;
+        size_t results = 0;
+        for (ctrlbus_rx_t rx = push(&r->decoder, data[i], now, &frame); rx != CTRLBUS_RX_NONE;
+             rx = next(&r->decoder, &frame)) {
+            FUZZ_CHECK(rx >= CTRLBUS_RX_FRAME && rx <= CTRLBUS_RX_EMPTY_FRAME);
+            FUZZ_CHECK(++results <= (size_t)max_frame + 2u);
+            if (rx == CTRLBUS_RX_FRAME) {
+                fuzz_check_frame(&frame, r->buffer.buffer, max_frame);
+                r->frame_bytes += frame_size(&frame);
+            }
+            fuzz_log_add(r->log, rx, &frame);
+            if (i + 1u < len && (r->decoder.state & FRAME_C_STATE_WAITING) && (data[i] & 1u)) {
+                /* Pushing while results wait is refused and changes nothing. */
+                ctrlbus_decoder_t before = r->decoder;
+                ctrlbus_decoder_stats_t stats_before = r->stats;
+                FUZZ_CHECK(push(&r->decoder, data[i + 1u], now + 1u, NULL) == CTRLBUS_RX_BUSY);
+                FUZZ_CHECK(memcmp(&before, &r->decoder, sizeof before) == 0);
+                FUZZ_CHECK(memcmp(&stats_before, &r->stats, sizeof stats_before) == 0);
+            }
+        }
+        r->taken++;
+        fuzz_guarded_check(&r->buffer);
+    }
+    check_accounting(r);
+}
+
+typedef int32_t (*init_fn)(ctrlbus_decoder_t *, uint8_t *, size_t, uint16_t,
+                          ctrlbus_decoder_stats_t *);
+
+static void run_init(run_t *r, fuzz_log_t *log, uint16_t timeout, init_fn init)
 {
     memset(&r->stats, 0, sizeof r->stats);
     fuzz_guarded_init(&r->buffer, max_frame);
-    int32_t result = bytepath ? bytepath_decoder_init(&r->decoder, r->buffer.buffer, max_frame,
-                                                      timeout, &r->stats)
-                              : ctrlbus_decoder_init(&r->decoder, r->buffer.buffer, max_frame,
-                                                     timeout, &r->stats);
+    int32_t result = init(&r->decoder, r->buffer.buffer, max_frame, timeout, &r->stats);
     FUZZ_CHECK(result == CTRLBUS_OK);
     r->log = log;
     r->taken = r->frame_bytes = 0;
@@ -184,10 +263,13 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     const uint8_t *stream = in.data;
     size_t stream_len = in.left;
 
-    static run_t a, b, c;
-    run_init(&a, &log_a, timeout, false);
-    run_init(&b, NULL, timeout, true); /* compared with A call by call: no log of its own */
-    run_init(&c, &log_c, timeout, false);
+    static run_t a, b, c, d, e, f;
+    run_init(&a, &log_a, timeout, ctrlbus_decoder_init);
+    run_init(&b, NULL, timeout, bytepath_decoder_init); /* compared with A call by call */
+    run_init(&c, &log_c, timeout, ctrlbus_decoder_init);
+    run_init(&d, &log_d, timeout, ctrlbus_decoder_init);
+    run_init(&e, &log_e, timeout, bytepath_decoder_init);
+    run_init(&f, &log_f, timeout, lean_decoder_init);
 
     uint32_t now = fuzz_rng(&rng);
     for (size_t pos = 0; pos < stream_len;) {
@@ -196,6 +278,12 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             tick_both(&a, &b, tick_at);
             ctrlbus_decoder_tick(&c.decoder, tick_at);
             drain_one(&c);
+            ctrlbus_decoder_tick(&d.decoder, tick_at);
+            drain_with(&d, ctrlbus_decoder_next);
+            bytepath_decoder_tick(&e.decoder, tick_at);
+            drain_with(&e, bytepath_decoder_next);
+            lean_decoder_tick(&f.decoder, tick_at);
+            drain_with(&f, lean_decoder_next);
             now = tick_at;
         }
         now += time_step(&rng, timeout);
@@ -206,6 +294,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         }
         feed_both(&a, &b, stream + pos, cut, now);
         feed_bytewise(&c, stream + pos, cut, now);
+        push_bytewise(&d, push_ours, ctrlbus_decoder_next, stream + pos, cut, now);
+        push_bytewise(&e, bytepath_decoder_push, bytepath_decoder_next, stream + pos, cut, now);
+        feed_cut(&f, lean_decoder_feed, lean_decoder_next, stream + pos, cut, now);
         pos += cut;
     }
     /* The line goes quiet: a partial frame left over times out. */
@@ -213,13 +304,28 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     tick_both(&a, &b, end);
     ctrlbus_decoder_tick(&c.decoder, end);
     drain_one(&c);
+    ctrlbus_decoder_tick(&d.decoder, end);
+    drain_with(&d, ctrlbus_decoder_next);
+    bytepath_decoder_tick(&e.decoder, end);
+    drain_with(&e, bytepath_decoder_next);
+    lean_decoder_tick(&f.decoder, end);
+    drain_with(&f, lean_decoder_next);
 
     FUZZ_CHECK(a.taken == stream_len && c.taken == stream_len);
+    FUZZ_CHECK(d.taken == stream_len && e.taken == stream_len && f.taken == stream_len);
     FUZZ_CHECK(fuzz_log_equal(&log_a, &log_c));
+    FUZZ_CHECK(fuzz_log_equal(&log_a, &log_d));
+    FUZZ_CHECK(fuzz_log_equal(&log_a, &log_e));
+    FUZZ_CHECK(fuzz_log_equal(&log_a, &log_f));
     FUZZ_CHECK(memcmp(&a.stats, &c.stats, sizeof a.stats) == 0);
+    FUZZ_CHECK(memcmp(&a.stats, &d.stats, sizeof a.stats) == 0);
+    FUZZ_CHECK(memcmp(&a.stats, &e.stats, sizeof a.stats) == 0);
+    FUZZ_CHECK(memcmp(&a.stats, &f.stats, sizeof a.stats) == 0);
     if (timeout != 0) {
         /* After the final timeout nothing is left: every byte is in a frame or discarded. */
         FUZZ_CHECK(!ctrlbus_decoder_busy(&a.decoder) && !ctrlbus_decoder_busy(&c.decoder));
+        FUZZ_CHECK(!ctrlbus_decoder_busy(&d.decoder) && !bytepath_decoder_busy(&e.decoder));
+        FUZZ_CHECK(!lean_decoder_busy(&f.decoder));
         FUZZ_CHECK(a.taken == a.frame_bytes + a.stats.bytes_discarded);
     }
     return 0;

@@ -264,14 +264,20 @@ int32_t ctrlbus_frame_encode(uint8_t *out, size_t out_size, uint8_t cmd, const u
 
 /* ---- decoder -------------------------------------------------------------------------------- */
 
-/* The bulk path (see CTRLBUS_DECODER_FAST in frame.h): on by default, off in builds optimised for
- * size, which are MCU firmware builds. */
+/* The bulk path (see CTRLBUS_DECODER_FAST in frame.h): 0 = off; 1 = on, with the shortcuts for
+ * the most common feeds (the default); 2 = on without the shortcuts, take_bulk() in the general
+ * loop alone (the default in builds optimised for size, which are MCU firmware builds). */
 #ifndef CTRLBUS_DECODER_FAST
 #if defined(__OPTIMIZE_SIZE__)
-#define CTRLBUS_DECODER_FAST 0
+#define CTRLBUS_DECODER_FAST 2
 #else
 #define CTRLBUS_DECODER_FAST 1
 #endif
+#endif
+#if CTRLBUS_DECODER_FAST == 1
+#define DECODER_SHORTCUTS 1
+#else
+#define DECODER_SHORTCUTS 0
 #endif
 
 /* Inlining hints for the bulk path, for GCC and clang (other compilers decide alone; without the
@@ -284,6 +290,12 @@ int32_t ctrlbus_frame_encode(uint8_t *out, size_t out_size, uint8_t cmd, const u
 #else
 #define OUT_OF_LINE
 #define IN_LINE
+#endif
+/* For a rare path, at every optimisation level: kept out of its caller, which then stays small. */
+#if defined(__GNUC__)
+#define RARE __attribute__((noinline))
+#else
+#define RARE
 #endif
 
 /* decoder->state: the low three bits hold a result found but not yet taken by next(). */
@@ -301,6 +313,11 @@ int32_t ctrlbus_frame_encode(uint8_t *out, size_t out_size, uint8_t cmd, const u
  * runs empty. So the position is in a span exactly while the buffer has not run empty since the
  * last failure. */
 #define STATE_IN_SPAN 0x40u
+/* ctrlbus_decoder_push() took a byte while a timeout applied before it: the byte waits at
+ * buffer[end] (outside the buffered bytes) until the results of the timeout have been taken. */
+#define STATE_HELD 0x80u
+/* Results or work that must come before any new byte. */
+#define STATE_WAITING (STATE_PENDING_MASK | STATE_RESCAN | STATE_HELD)
 
 /* Time gaps at or beyond this are taken as "the clock went backwards" rather than a long wait. */
 #define TIME_BACKWARDS 0x80000000u
@@ -373,13 +390,14 @@ void ctrlbus_decoder_reset(ctrlbus_decoder_t *decoder)
     }
     decoder->start = 0;
     decoder->end = 0;
+    decoder->complete_at = 0;
     decoder->checksum = 0;
     decoder->state = 0;
 }
 
 bool ctrlbus_decoder_busy(const ctrlbus_decoder_t *decoder)
 {
-    return decoder != NULL && decoder->end > decoder->start;
+    return decoder != NULL && (decoder->end > decoder->start || (decoder->state & STATE_HELD));
 }
 
 const char *ctrlbus_rx_name(ctrlbus_rx_t rx)
@@ -392,6 +410,7 @@ const char *ctrlbus_rx_name(ctrlbus_rx_t rx)
     case CTRLBUS_RX_OVERSIZE: return "oversize";
     case CTRLBUS_RX_TIMEOUT: return "timeout";
     case CTRLBUS_RX_EMPTY_FRAME: return "empty_frame";
+    case CTRLBUS_RX_BUSY: return "busy";
     default: return "unknown";
     }
 }
@@ -450,6 +469,9 @@ static bool discard(ctrlbus_decoder_t *d, uint32_t n)
  * any failed candidate's span (nothing buffered can be in it any more). */
 static void settle_empty(ctrlbus_decoder_t *d)
 {
+    if (d->state & STATE_HELD) {
+        d->buffer[0] = d->buffer[d->end]; /* the held byte stays right behind the buffered ones */
+    }
     d->start = d->end = 0;
     d->checksum = 0;
     clear_flag(d, STATE_FLUSHING | STATE_IN_SPAN);
@@ -525,15 +547,25 @@ static bool hold(ctrlbus_decoder_t *d, ctrlbus_rx_t rx)
     return true;
 }
 
-/* Finishes a rescan that a taken result interrupted. Returns its result (or NONE). */
+/* Finishes a rescan that a taken result interrupted, then takes a held byte (see STATE_HELD).
+ * Returns the first result found (or NONE). */
 static ctrlbus_rx_t resume(ctrlbus_decoder_t *d)
 {
-    if (!(d->state & STATE_RESCAN)) {
+    if (d->state & STATE_RESCAN) {
+        clear_flag(d, STATE_RESCAN);
+        d->checksum = 0;
+        ctrlbus_rx_t rx = scan(d, d->start);
+        if (rx != CTRLBUS_RX_NONE) {
+            return rx;
+        }
+    }
+    if (!(d->state & STATE_HELD)) {
         return CTRLBUS_RX_NONE;
     }
-    clear_flag(d, STATE_RESCAN);
-    d->checksum = 0;
-    return scan(d, d->start);
+    /* d->checksum covers buffer[start..end) (scan() left it so), and the byte is at buffer[end]. */
+    clear_flag(d, STATE_HELD);
+    d->end++;
+    return scan(d, d->end - 1u);
 }
 
 /* Rule 5 would fail the partial candidate (if there is one) at now_ms. */
@@ -549,6 +581,7 @@ static ctrlbus_rx_t apply_timeout(ctrlbus_decoder_t *d, uint32_t now_ms)
     if (d->end == d->start || !timed_out(d, now_ms)) {
         return CTRLBUS_RX_NONE;
     }
+    d->complete_at = 0;
     set_flag(d, STATE_FLUSHING);
     if (fail_candidate(d, CTRLBUS_RX_TIMEOUT)) {
         return raise_event(d, CTRLBUS_RX_TIMEOUT); /* the stale bytes are rescanned after it */
@@ -720,7 +753,7 @@ OUT_OF_LINE static size_t feed_bytes(ctrlbus_decoder_t *d, const uint8_t *data, 
     return len;
 }
 
-#if CTRLBUS_DECODER_FAST
+#if DECODER_SHORTCUTS
 /* ctrlbus_decoder_feed() for a usable decoder with no result pending, no rescan due and some bytes:
  * one take_bulk() step, then the general path for whatever remains. */
 OUT_OF_LINE static size_t feed_bulk(ctrlbus_decoder_t *d, const uint8_t *data, size_t len,
@@ -745,7 +778,7 @@ OUT_OF_LINE static size_t feed_bulk(ctrlbus_decoder_t *d, const uint8_t *data, s
 }
 #endif
 
-#if CTRLBUS_DECODER_FAST
+#if DECODER_SHORTCUTS
 /* A feed of one byte (a UART interrupt's), in the cases that need none of take_bulk()'s rarer
  * steps: it starts a candidate in an empty buffer, extends one (its header not yet complete, or
  * complete with an acceptable size), or completes one as a frame with a command. Returns false,
@@ -799,8 +832,11 @@ size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, siz
     if (d == NULL || d->buffer == NULL) {
         return len; /* nowhere to put them: report them taken so a caller's loop ends */
     }
-#if CTRLBUS_DECODER_FAST
-    if (data != NULL && len != 0 && (d->state & (STATE_PENDING_MASK | STATE_RESCAN)) == 0) {
+    if (data != NULL && len != 0) {
+        d->complete_at = 0; /* push()'s inline path waits until push_slow() has looked again */
+    }
+#if DECODER_SHORTCUTS
+    if (data != NULL && len != 0 && (d->state & STATE_WAITING) == 0) {
         /* The most common cases, settled right here: nothing buffered, and the input starts with
          * a whole valid frame with a command, or with the start of a frame that goes on beyond
          * it. This is take_bulk() cut down to those cases (start is 0, the buffer being empty); a
@@ -835,6 +871,11 @@ size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, siz
 
 void ctrlbus_decoder_tick(ctrlbus_decoder_t *decoder, uint32_t now_ms)
 {
+    ctrlbus_decoder_t *d = decoder;
+    if (d != NULL && !(d->state & STATE_WAITING) &&
+        (d->end == d->start || !timed_out(d, now_ms))) {
+        return; /* the usual case, called from every main-loop pass: nothing to do */
+    }
     (void)ctrlbus_decoder_feed(decoder, NULL, 0, now_ms);
 }
 
@@ -866,7 +907,7 @@ IN_LINE static ctrlbus_rx_t hand_out(ctrlbus_decoder_t *d, ctrlbus_frame_t *fram
     return rx;
 }
 
-#if CTRLBUS_DECODER_FAST
+#if DECODER_SHORTCUTS
 /* ctrlbus_decoder_next() when nothing is pending but a rescan is due: out of line, so that handing
  * out a pending result saves no registers. (Without the bulk path, one call of hand_out() is
  * smaller.) */
@@ -884,18 +925,173 @@ ctrlbus_rx_t ctrlbus_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *f
         return CTRLBUS_RX_NONE;
     }
     ctrlbus_rx_t rx = (ctrlbus_rx_t)(d->state & STATE_PENDING_MASK);
-#if CTRLBUS_DECODER_FAST
+#if DECODER_SHORTCUTS
     if (rx != CTRLBUS_RX_NONE) {
         clear_flag(d, STATE_PENDING_MASK);
         return hand_out(d, frame, rx);
     }
-    return (d->state & STATE_RESCAN) ? next_after_rescan(d, frame) : CTRLBUS_RX_NONE;
+    return (d->state & (STATE_RESCAN | STATE_HELD)) ? next_after_rescan(d, frame) : CTRLBUS_RX_NONE;
 #else
     if (rx != CTRLBUS_RX_NONE) {
         clear_flag(d, STATE_PENDING_MASK);
-    } else if (!(d->state & STATE_RESCAN) || (rx = resume(d)) == CTRLBUS_RX_NONE) {
+    } else if (!(d->state & (STATE_RESCAN | STATE_HELD)) || (rx = resume(d)) == CTRLBUS_RX_NONE) {
         return CTRLBUS_RX_NONE;
     }
     return hand_out(d, frame, rx);
 #endif
+}
+
+/* ---- push: one byte per call ---------------------------------------------------------------- */
+
+/* Lets push()'s inline path take the next bytes when the decoder waits for more of a candidate
+ * whose size is known, which fits the buffer where it is, has a command (LEN > 0), and needs at
+ * least two more bytes (the last byte goes through push_slow(), which checks the frame). */
+static void arm_inline_path(ctrlbus_decoder_t *d)
+{
+    d->complete_at = 0;
+    uint32_t have = d->end - d->start;
+    if ((d->state & STATE_WAITING) || have == 0) {
+        return;
+    }
+    const uint8_t *cand = d->buffer + d->start;
+    uint32_t header = header_size(cand[0]);
+    if (have < header) {
+        return;
+    }
+    uint32_t len_field = length_field(cand, header);
+    uint32_t size = header + len_field + 1u;
+    if (len_field != 0 && size <= d->max_frame - d->start && have < size) {
+        d->complete_at = d->start + size;
+    }
+}
+
+/* The byte that completes the armed candidate at `start`, which its checksum makes a frame with a
+ * command: yield it and hand it out at once. Nothing else is buffered, so the buffer settles empty;
+ * the frame's bytes stay where they are until the next call. */
+static ctrlbus_rx_t push_last_byte(ctrlbus_decoder_t *d, uint8_t byte, ctrlbus_frame_t *frame)
+{
+    uint32_t start = d->start;
+    const uint8_t *cand = d->buffer + start;
+    d->buffer[d->end] = byte;
+    uint32_t header = header_size(cand[0]);
+    if (frame != NULL) {
+        frame->is_long = header == 3u;
+        frame->cmd = cand[header];
+        frame->payload = cand + header + 1u;
+        frame->payload_len = (size_t)(d->complete_at - start - header - 2u);
+    }
+    if (d->stats != NULL) {
+        count(&d->stats->frames);
+    }
+    d->start = d->end = d->complete_at = 0;
+    d->checksum = 0;
+    clear_flag(d, STATE_EVENT_SINCE_FRAME | STATE_FLUSHING | STATE_IN_SPAN);
+    return CTRLBUS_RX_FRAME;
+}
+
+/* A byte that arrives after the buffered candidate went stale: the timeout comes first, and its
+ * results (the failure, then what the rescan of the stale bytes finds) come out ahead of the byte,
+ * which waits at buffer[end] until they have been taken (STATE_HELD; resume() takes it). */
+RARE static ctrlbus_rx_t push_after_timeout(ctrlbus_decoder_t *d, uint8_t byte, uint32_t now_ms,
+                                            ctrlbus_frame_t *frame)
+{
+    d->complete_at = 0;
+    if (d->end == d->max_frame) {
+        move_to_front(d); /* a waiting candidate is shorter than max_frame: start > 0 */
+    }
+    d->buffer[d->end] = byte;
+    set_flag(d, STATE_HELD);
+    ctrlbus_rx_t rx = apply_timeout(d, now_ms);
+    d->last_byte_ms = now_ms;
+    if (rx == CTRLBUS_RX_NONE) {
+        rx = resume(d); /* the stale bytes held nothing: the byte goes in now */
+    }
+    if (rx == CTRLBUS_RX_NONE) {
+        arm_inline_path(d);
+        return rx;
+    }
+    hold(d, rx);
+    return ctrlbus_decoder_next(d, frame);
+}
+
+/* Everything push_slow() does not settle itself (garbage, a failure, an empty frame, a full buffer,
+ * an oversize length): the general path, as a feed of one byte and the first result after it. */
+RARE static ctrlbus_rx_t push_general(ctrlbus_decoder_t *d, uint8_t byte, uint32_t now_ms,
+                                      ctrlbus_frame_t *frame)
+{
+    d->complete_at = 0;
+    (void)ctrlbus_decoder_feed(d, &byte, 1u, now_ms);
+    ctrlbus_rx_t rx = ctrlbus_decoder_next(d, frame);
+    if (rx == CTRLBUS_RX_NONE) {
+        arm_inline_path(d);
+    }
+    return rx;
+}
+
+/* complete_at - start for a long candidate armed at its flag: its first length byte takes push()'s
+ * inline path and its second comes to push_slow(). No frame with a command is this short (a
+ * standard frame with LEN 1 has 4 bytes, a long one 5), so it never means "the frame is complete".
+ * The buffer is empty when a flag arrives, so start is 0 and these 3 bytes fit (max_frame >= 5). */
+#define LONG_HEADER_ARMED 3u
+
+ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte, uint32_t now_ms,
+                                       ctrlbus_frame_t *frame)
+{
+    ctrlbus_decoder_t *d = decoder;
+    if (d == NULL || d->buffer == NULL) {
+        return CTRLBUS_RX_NONE;
+    }
+    if (d->state & STATE_WAITING) {
+        return CTRLBUS_RX_BUSY;
+    }
+    uint32_t start = d->start;
+    uint32_t end = d->end;
+    if (now_ms != d->last_byte_ms) {
+        if (end != start && timed_out(d, now_ms)) {
+            return push_after_timeout(d, byte, now_ms, frame);
+        }
+        d->last_byte_ms = now_ms;
+    }
+    /* The common cases, each the same as scan() taking the byte; `arm` is complete_at after it. */
+    uint32_t complete_at = d->complete_at;
+    uint32_t arm = complete_at;
+    if (complete_at != 0 && end + 1u < complete_at) {
+        /* a byte inside an armed candidate, at a new millisecond */
+    } else if (complete_at != 0 && complete_at - start != LONG_HEADER_ARMED) {
+        if ((d->checksum ^ byte) != 0) {
+            return push_general(d, byte, now_ms, frame); /* a checksum error */
+        }
+        return push_last_byte(d, byte, frame);
+    } else if (end == start) {
+        if ((byte | 0x40u) != CTRLBUS_FLAG_LONG) {
+            return push_general(d, byte, now_ms, frame); /* garbage */
+        }
+        /* a flag: a candidate starts (nothing buffered: start == end == 0, d->checksum == 0). A
+         * long frame's first length byte can take the inline path. */
+        arm = byte == CTRLBUS_FLAG_LONG && start == 0 ? LONG_HEADER_ARMED : 0u;
+    } else {
+        /* a byte behind a flag, the candidate's size not known yet */
+        const uint8_t *cand = d->buffer + start;
+        uint32_t have = end - start;
+        uint32_t header = header_size(cand[0]);
+        if (end == d->max_frame || have >= header) {
+            return push_general(d, byte, now_ms, frame); /* a full buffer, or not armable */
+        }
+        arm = 0;
+        if (have + 1u == header) {
+            /* the header's last byte: the candidate's size is known */
+            uint32_t len_field = header == 2u ? byte : (cand[1] | (uint32_t)byte << 8);
+            uint32_t size = header + len_field + 1u;
+            if (len_field == 0 || size > d->max_frame - start) {
+                /* empty, oversize, or not fitting the buffer where it starts */
+                return push_general(d, byte, now_ms, frame);
+            }
+            arm = start + size;
+        }
+    }
+    d->buffer[end] = byte;
+    d->end = end + 1u;
+    d->checksum ^= byte;
+    d->complete_at = arm;
+    return CTRLBUS_RX_NONE;
 }

@@ -75,8 +75,33 @@ static void expect_results(const char *expected)
     CHECK_STR(actual, expected);
 }
 
-/* Runs hex through a fresh decoder whole, byte by byte, and in pieces of 3, expecting the same
- * results each time; leaves the whole-feed run in log_a and its fixture in *f. */
+/* Pushes len bytes one ctrlbus_decoder_push() each, stamped now_ms, taking every result after a
+ * push with ctrlbus_decoder_next() (the header's loop); appends them to log. */
+static void push_bytes(rx_log_t *log, ctrlbus_decoder_t *decoder, const uint8_t *data, size_t len,
+                       uint32_t now_ms)
+{
+    for (size_t i = 0; i < len; i++) {
+        ctrlbus_frame_t frame;
+        for (ctrlbus_rx_t rx = ctrlbus_decoder_push(decoder, data[i], now_ms, &frame);
+             rx != CTRLBUS_RX_NONE; rx = ctrlbus_decoder_next(decoder, &frame)) {
+            if (!CHECK(rx != CTRLBUS_RX_BUSY)) {
+                return;
+            }
+            rx_log_add(log, rx, &frame);
+        }
+    }
+}
+
+static void push_hex(fixture_t *f, const char *hex, uint32_t now_ms)
+{
+    uint8_t data[512];
+    size_t len = harness_unhex(data, sizeof data, hex);
+    push_bytes(&log_a, &f->decoder, data, len, now_ms);
+}
+
+/* Runs hex through a fresh decoder whole, byte by byte, in pieces of 2, 3 and 7, and through
+ * ctrlbus_decoder_push() one byte at a time, expecting the same results each time; leaves the
+ * whole-feed run in log_a and its fixture in *f. */
 static void run_all_splits(fixture_t *f, size_t buffer_size, uint16_t timeout_ms, const char *hex)
 {
     static const size_t pieces[] = {1, 2, 3, 7};
@@ -97,6 +122,16 @@ static void run_all_splits(fixture_t *f, size_t buffer_size, uint16_t timeout_ms
         CHECK(memcmp(&f->stats, &other.stats, sizeof f->stats) == 0);
         CHECK(fixture_canary_intact(f) && fixture_canary_intact(&other));
     }
+    fixture_t pushed;
+    fixture_init(&pushed, buffer_size, timeout_ms);
+    rx_log_clear(&log_b);
+    push_bytes(&log_b, &pushed.decoder, data, len, 0);
+    if (!CHECK(rx_log_equal(&log_a, &log_b))) {
+        rx_log_print("whole", &log_a);
+        rx_log_print("pushed", &log_b);
+    }
+    CHECK(memcmp(&f->stats, &pushed.stats, sizeof f->stats) == 0);
+    CHECK(fixture_canary_intact(&pushed));
 }
 
 /* ---- encoder -------------------------------------------------------------------------------- */
@@ -552,6 +587,136 @@ static void test_timeout_across_clock_wraparound(void)
     CHECK(ctrlbus_decoder_busy(&f.decoder));
 }
 
+static void test_push_takes_a_frame_byte_by_byte(void)
+{
+    static const uint8_t request[] = {0x10, 0x03, 0x01, 0xAA, 0x55, 0xED};
+    fixture_t f;
+    fixture_init(&f, 64, 10);
+    ctrlbus_frame_t frame;
+    for (size_t i = 0; i + 1u < sizeof request; i++) {
+        CHECK_EQ(ctrlbus_decoder_push(&f.decoder, request[i], 7, &frame), CTRLBUS_RX_NONE);
+    }
+    CHECK_EQ(ctrlbus_decoder_push(&f.decoder, request[5], 7, &frame), CTRLBUS_RX_FRAME);
+    CHECK(!frame.is_long && frame.cmd == 0x01 && frame.payload_len == 2);
+    CHECK(frame.payload[0] == 0xAA && frame.payload[1] == 0x55);
+    CHECK_EQ(ctrlbus_decoder_next(&f.decoder, &frame), CTRLBUS_RX_NONE);
+    CHECK(!ctrlbus_decoder_busy(&f.decoder));
+    CHECK_EQ(f.stats.frames, 1);
+
+    /* A long frame, each byte at a new millisecond (push_slow() instead of the inline path). */
+    rx_log_clear(&log_a);
+    static const char *const bytes[] = {"50", "03", "00", "02", "11", "22", "62"};
+    for (uint32_t i = 0; i < sizeof bytes / sizeof bytes[0]; i++) {
+        push_hex(&f, bytes[i], 8u + i);
+    }
+    expect_results("frame-long:02:11 22");
+
+    /* A NULL decoder takes nothing. */
+    CHECK_EQ(ctrlbus_decoder_push(NULL, 0x10, 0, &frame), CTRLBUS_RX_NONE);
+}
+
+static void test_push_applies_the_timeout_before_the_byte(void)
+{
+    /* The stale partial frame fails first; the byte that arrived late starts the next frame. */
+    fixture_t f;
+    fixture_init(&f, 64, 10);
+    rx_log_clear(&log_a);
+    push_hex(&f, "10 05 F8", 0);
+    push_hex(&f, "10 02 F8 30 DA", 50);
+    expect_results("timeout,frame:F8:30");
+
+    /* The stale bytes hold a whole frame: it comes out after the timeout, then what the late
+     * byte starts (garbage here), exactly as feeding gives. */
+    static const char *const stale = "10 07 10 02 F8 30 DA";
+    fixture_init(&f, 64, 10);
+    rx_log_clear(&log_a);
+    push_hex(&f, stale, 0);
+    push_hex(&f, "AA", 50);
+    expect_results("timeout,frame:F8:30,garbage");
+    fixture_t fed;
+    fixture_init(&fed, 64, 10);
+    rx_log_clear(&log_b);
+    uint8_t data[16];
+    size_t len = harness_unhex(data, sizeof data, stale);
+    rx_log_feed(&log_b, &fed.decoder, data, len, 0, 0);
+    rx_log_feed(&log_b, &fed.decoder, (const uint8_t *)"\xAA", 1, 50, 0);
+    CHECK(rx_log_equal(&log_a, &log_b));
+    CHECK(memcmp(&f.stats, &fed.stats, sizeof f.stats) == 0);
+
+    /* The held byte is counted as buffered until the timeout's results are taken. */
+    fixture_init(&f, 64, 10);
+    ctrlbus_frame_t frame;
+    push_hex(&f, "10 07 10 02 F8 30 DA", 0);
+    CHECK_EQ(ctrlbus_decoder_push(&f.decoder, 0x10, 50, &frame), CTRLBUS_RX_TIMEOUT);
+    CHECK(ctrlbus_decoder_busy(&f.decoder));
+    CHECK_EQ(ctrlbus_decoder_next(&f.decoder, &frame), CTRLBUS_RX_FRAME);
+    CHECK_EQ(ctrlbus_decoder_next(&f.decoder, &frame), CTRLBUS_RX_NONE);
+    CHECK(ctrlbus_decoder_busy(&f.decoder)); /* the 0x10 now starts a candidate */
+    CHECK_EQ(f.decoder.end - f.decoder.start, 1);
+}
+
+static void test_push_refuses_a_byte_while_results_wait(void)
+{
+    /* A checksum failure whose span holds a frame: two results from one byte. */
+    uint8_t data[32];
+    size_t len = harness_unhex(data, sizeof data, "10 08 10 02 F8 30 DA 10 02 F8 31 DB 00 00");
+    fixture_t f;
+    fixture_init(&f, 64, 0);
+    ctrlbus_frame_t frame;
+    size_t i = 0;
+    ctrlbus_rx_t rx = CTRLBUS_RX_NONE;
+    while (i < len && (rx = ctrlbus_decoder_push(&f.decoder, data[i], 0, &frame)) == CTRLBUS_RX_NONE) {
+        i++;
+    }
+    CHECK_EQ(rx, CTRLBUS_RX_CHECKSUM_ERROR);
+    ctrlbus_decoder_t before = f.decoder;
+    ctrlbus_decoder_stats_t stats = f.stats;
+    CHECK_EQ(ctrlbus_decoder_push(&f.decoder, 0x10, 0, &frame), CTRLBUS_RX_BUSY);
+    CHECK(memcmp(&before, &f.decoder, sizeof before) == 0);
+    CHECK(memcmp(&stats, &f.stats, sizeof stats) == 0);
+    CHECK_EQ(ctrlbus_decoder_next(&f.decoder, &frame), CTRLBUS_RX_FRAME);
+    CHECK_EQ(frame.payload[0], 0x30);
+    CHECK_EQ(ctrlbus_decoder_next(&f.decoder, &frame), CTRLBUS_RX_NONE);
+    /* The rescan left 10 02 F8 31 waiting for its checksum: the next byte completes it. */
+    CHECK_EQ(ctrlbus_decoder_push(&f.decoder, data[i + 1u], 0, &frame), CTRLBUS_RX_FRAME);
+    CHECK_EQ(frame.payload[0], 0x31);
+    CHECK_EQ(ctrlbus_decoder_next(&f.decoder, &frame), CTRLBUS_RX_NONE);
+    CHECK_STR(ctrlbus_rx_name(CTRLBUS_RX_BUSY), "busy");
+}
+
+static void test_push_and_feed_mix(void)
+{
+    /* The same stream fed whole, and alternately pushed and fed in pieces: the same results. */
+    uint8_t data[64];
+    size_t len = harness_unhex(data, sizeof data,
+                               "10 03 01 AA 55 ED 77 50 03 00 02 11 22 20 10 00 10 10 02 F8 30 DA "
+                               "50 FF FF 10 02 F8 30 DA");
+    fixture_t whole;
+    fixture_init(&whole, 16, 10);
+    rx_log_clear(&log_a);
+    rx_log_feed(&log_a, &whole.decoder, data, len, 0, 0);
+    fixture_t mixed;
+    fixture_init(&mixed, 16, 10);
+    rx_log_clear(&log_b);
+    for (size_t i = 0; i < len;) {
+        size_t piece = i % 3u == 0 ? 1u : 4u;
+        if (piece > len - i) {
+            piece = len - i;
+        }
+        if (i % 2u == 0) {
+            push_bytes(&log_b, &mixed.decoder, data + i, piece, 0);
+        } else {
+            rx_log_feed(&log_b, &mixed.decoder, data + i, piece, 0, 0);
+        }
+        i += piece;
+    }
+    if (!CHECK(rx_log_equal(&log_a, &log_b))) {
+        rx_log_print("whole", &log_a);
+        rx_log_print("mixed", &log_b);
+    }
+    CHECK(memcmp(&whole.stats, &mixed.stats, sizeof whole.stats) == 0);
+}
+
 static void test_reset_forgets_buffered_bytes(void)
 {
     fixture_t f;
@@ -892,6 +1057,10 @@ int main(void)
     RUN(test_timeout_drops_a_partial_frame);
     RUN(test_timeout_is_applied_before_new_bytes);
     RUN(test_timeout_across_clock_wraparound);
+    RUN(test_push_takes_a_frame_byte_by_byte);
+    RUN(test_push_applies_the_timeout_before_the_byte);
+    RUN(test_push_refuses_a_byte_while_results_wait);
+    RUN(test_push_and_feed_mix);
     RUN(test_reset_forgets_buffered_bytes);
     RUN(test_largest_long_frame);
     RUN(test_decoder_matches_the_model_on_random_streams);

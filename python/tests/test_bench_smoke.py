@@ -74,23 +74,35 @@ def test_c_parser_cost_figures(smoke: tuple[Path, dict[str, dict[str, Any]]]) ->
     assert f["mavlink_messages"] > 0 and f["ctrlbus_frames"] > 0
     # The peer stream is the same size as ours, within one MAVLink frame.
     assert 0 <= f["ctrlbus_stream_bytes"] - f["mavlink_stream_bytes"] < 300
+    levels = ("O2", "Os")
     for variant in ("clean", "noisy"):
-        for mode in ("parse_char", "frame_char_buffer"):
-            assert f[f"{variant}_mavlink_{mode}_ipb"] > 1.0
+        for level in levels:
+            for who in ("mavlink_parse_char", "mavlink_frame_char_buffer", "floor_inline", "floor_call"):
+                assert f[f"{variant}_{level}_{who}_ipb"] > 1.0
     commands = "\n".join(result["tool_commands"])
     assert "valgrind --tool=callgrind" in commands and "pymavlink.tools.mavgen --lang=C" in commands
+    # Every binary's flags are in the result, and each level was built.
+    builds = result["details"]["builds"]
+    for level in levels:
+        assert f"-{level}" in builds[f"{level}_mavlink_parse_char"]
     reports = result["details"]["harness_reports"]
-    assert reports["clean"]["mavlink_parse_char"]["messages"] == f["mavlink_messages"]
-    assert reports["noisy"]["mavlink_parse_char"]["messages"] < f["mavlink_messages"]
+    for level in levels:
+        assert reports["clean"][f"{level}_mavlink_parse_char"]["messages"] == f["mavlink_messages"]
+        assert reports["noisy"][f"{level}_mavlink_parse_char"]["messages"] < f["mavlink_messages"]
+        assert reports["clean"][f"{level}_floor_inline"]["frames"] == f["ctrlbus_frames"]
     if result["status"] == "measured":
         for variant in ("clean", "noisy"):
-            for mode in ("bytes", "chunks"):
-                ours = f[f"{variant}_ctrlbus_{mode}_ipb"]
-                assert ours > 0
-                expected = ours / f[f"{variant}_mavlink_parse_char_ipb"]
-                assert f[f"{variant}_ratio_{mode}_vs_parse_char"] == pytest.approx(expected, rel=1e-2)
-        assert reports["clean"]["ctrlbus_bytes"]["frames"] == f["ctrlbus_frames"]
-        assert reports["clean"]["ctrlbus_chunks"]["frames"] == f["ctrlbus_frames"]
+            for level in levels:
+                for mode in ("push", "bytes", "chunks"):
+                    ours = f[f"{variant}_{level}_ctrlbus_{mode}_ipb"]
+                    assert ours > 0
+                    expected = ours / f[f"{variant}_{level}_mavlink_parse_char_ipb"]
+                    assert f[f"{variant}_{level}_ratio_{mode}_vs_parse_char"] == pytest.approx(
+                        expected, rel=1e-2
+                    )
+        for level in levels:
+            for mode in ("push", "bytes", "chunks"):
+                assert reports["clean"][f"{level}_ctrlbus_{mode}"]["frames"] == f["ctrlbus_frames"]
 
 
 def test_python_throughput_figures(smoke: tuple[Path, dict[str, dict[str, Any]]]) -> None:
@@ -222,15 +234,17 @@ def test_base_exchange_figures(smoke: tuple[Path, dict[str, dict[str, Any]]]) ->
         return
     f = result["figures"]
     assert f["exchanges"] > 0 and f["request_bytes"] == 17 and f["answer_bytes"] in (18, 22)
-    for mode in ("frames", "bytes"):
-        assert f[f"{mode}_instructions_per_exchange"] > 0
-        report = result["details"]["harness_reports"][mode]
-        assert report["exchanges"] == f["exchanges"]
-        assert report["answer_bytes"] == f["exchanges"] * f["answer_bytes"]
+    for level in ("O2", "Os"):
+        for mode in ("frames", "bytes", "polled"):
+            assert f[f"{level}_{mode}_instructions_per_exchange"] > 0
+            report = result["details"]["harness_reports"][level][mode]
+            assert report["exchanges"] == f["exchanges"]
+            assert report["answer_bytes"] == f["exchanges"] * f["answer_bytes"]
     # Streamed: several write calls per answer, none holding the whole answer.
     assert f["write_calls_per_answer"] > 1 and 0 < f["largest_write_bytes"] < f["answer_bytes"]
     assert "valgrind --tool=callgrind" in "\n".join(result["tool_commands"])
-    assert result["details"]["profile_per_exchange"]["frames"]
+    assert result["details"]["profile_per_exchange"]["O2"]["frames"]
+    assert result["details"]["profile_per_exchange"]["Os"]["frames"]
 
 
 def test_footprint_figures(smoke: tuple[Path, dict[str, dict[str, Any]]]) -> None:

@@ -71,7 +71,7 @@
  * (a main loop stalled longer than the frame timeout while a request is arriving can time that
  * request out; the Core then sends it again).
  *
- * Footprint: ctrlbus_base_t is 60 bytes on a 32-bit MCU (scripts/size.sh prints it), besides the
+ * Footprint: ctrlbus_base_t is 64 bytes on a 32-bit MCU (scripts/size.sh prints it), besides the
  * caller's rx_ring, frame_buffer and the optional health and command storage. ctrlbus_base_poll()
  * needs at most about 600 bytes of C stack on a Cortex-M (`make size` prints the worst case per
  * target, from -fstack-usage along the call graph) plus what the handlers and write use; most of
@@ -359,7 +359,9 @@ size_t ctrlbus_base_feed(ctrlbus_base_t *base, const uint8_t *data, size_t len);
  * in the handlers' calls and in ctrlbus_base_counters(). A write callback that fails cuts that
  * answer short; the stack carries on with the next.
  * Not ISR-safe (main loop only). Cost: the decoder's cost for the bytes taken (O(1) per byte on a
- * clean link; frame.h gives the worst case), plus for each request its handler and the answer's
+ * clean link; frame.h gives the worst case: a run of fewer than 16 bytes in the ring goes through
+ * ctrlbus_decoder_push() one byte at a time, a longer one through one ctrlbus_decoder_feed(),
+ * whichever costs less), plus for each request its handler and the answer's
  * size in byte visits (a few write calls per field); no work beyond the ring's content at entry. */
 void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms);
 

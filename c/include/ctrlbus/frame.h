@@ -161,7 +161,9 @@ typedef enum {
     CTRLBUS_RX_CHECKSUM_ERROR = 3, /* a candidate frame whose checksum did not match */
     CTRLBUS_RX_OVERSIZE = 4,       /* a candidate frame longer than the buffer */
     CTRLBUS_RX_TIMEOUT = 5,        /* a partial frame dropped after the inter-byte timeout */
-    CTRLBUS_RX_EMPTY_FRAME = 6     /* a well-formed frame with LEN 0: it has no command */
+    CTRLBUS_RX_EMPTY_FRAME = 6,    /* a well-formed frame with LEN 0: it has no command */
+    CTRLBUS_RX_BUSY = 7 /* ctrlbus_decoder_push() only: results were still waiting, so the byte
+                         * was NOT taken; take them with ctrlbus_decoder_next(), then push it again */
 } ctrlbus_rx_t;
 
 /* A decoded frame. payload points into the decoder's buffer and stays valid until the next call of
@@ -186,7 +188,7 @@ typedef struct {
     uint32_t resyncs;         /* failed candidates of any kind */
 } ctrlbus_decoder_stats_t;
 
-/* The decoder state: 28 bytes on a 32-bit target, besides the caller's buffer (and the optional
+/* The decoder state: 32 bytes on a 32-bit target, besides the caller's buffer (and the optional
  * stats). Caller-owned; treat the fields as private. Offsets are uint32_t because a buffer may hold
  * a whole long frame of 65539 bytes. */
 typedef struct {
@@ -195,6 +197,8 @@ typedef struct {
     uint32_t max_frame;    /* usable buffer size, at most CTRLBUS_FRAME_MAX */
     uint32_t start;        /* first byte of the current candidate */
     uint32_t end;          /* one past the last buffered byte */
+    uint32_t complete_at;  /* the `end` that completes the buffered candidate, when known and
+                            * ctrlbus_decoder_push() may append to it inline; else 0 */
     uint32_t last_byte_ms; /* time of the last byte fed */
     uint16_t timeout_ms;   /* 0 = no inter-byte timeout */
     uint8_t checksum;      /* XOR of buffer[start..end) while waiting for more bytes */
@@ -244,21 +248,73 @@ void ctrlbus_decoder_reset(ctrlbus_decoder_t *decoder);
  * 65536 visits for a 512-byte buffer; that work happens in the call that found the failure or in
  * the ctrlbus_decoder_next() calls after it. Nothing depends on history beyond the buffer.
  *
- * Speed: frame.c has a bulk path (compile-time option CTRLBUS_DECODER_FAST, 0 or 1; by default 1,
- * and 0 when compiling with -Os, as MCU firmware is). With it, a feed takes the bytes of a frame
- * whose length is known in one step: it skips garbage up to the next flag in a tight loop, copies
- * the frame into the buffer and computes its checksum a machine word at a time; a feed of one byte
- * that starts, extends or completes a frame is settled in a few comparisons. Only a header split
- * between feeds, an oversize length, a failure and the rescan after it go byte by byte. The
- * results are the same either way (the fuzz target c/fuzz/fuzz_decoder.c compares the two).
- * Measured with callgrind on x86-64 (bench/c/ctrlbus_parse.c, gcc -O2, SET_V_AND_GET_DEADRECKON
- * requests and answers back to back), counting the caller's feed/next loop and not the walk over
- * the input: fed in 64-byte chunks, about 9 instructions per byte against about 70 without the
- * bulk path; fed one byte per call, about 103 against 158, half of it the two calls per byte. It
- * adds about 1.1 KB of code on a Cortex-M0+ compiled with -Os (3.3 KB in an x86-64 -O2 build), which
- * is why size-optimised builds leave it out by default. */
+ * Speed: frame.c has a bulk path, set by the compile-time option CTRLBUS_DECODER_FAST: 0 = off;
+ * 1 = on (the default): a feed takes the bytes of a frame whose length is known in one step (it
+ * skips garbage up to the next flag in a tight loop, copies the frame into the buffer and computes
+ * its checksum a machine word at a time), with shortcuts for the most common feeds (a whole frame,
+ * a frame's start); 2 = on without the shortcuts, about half the code (the default when compiling
+ * with -Os, as MCU firmware is). Only a header split between feeds, an oversize length, a failure
+ * and the rescan after it go byte by byte. The results are the same at every level (the fuzz
+ * target c/fuzz/fuzz_decoder.c compares them). For one byte at a time, use
+ * ctrlbus_decoder_push() rather than a feed of 1.
+ * Measured with callgrind on x86-64 (bench/c/ctrlbus_parse.c, a Core<->base session, the caller's
+ * loop included; docs/performance.md has the current figures): fed in 64-byte chunks about 9
+ * instructions per byte at -O2 (level 1) and 12 at -Os (level 2), against about 68 without the
+ * bulk path. On a Cortex-M0+ at -Os, level 2 adds about 0.55 KB of code and level 1 about 1.1 KB;
+ * set CTRLBUS_DECODER_FAST=0 where flash matters more than cycles. */
 size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, size_t len,
                             uint32_t now_ms);
+
+/* Takes one received byte (a UART interrupt's, or one from a ring) stamped with now_ms, and returns
+ * the first result it completes: CTRLBUS_RX_NONE (the usual answer: the byte is inside a frame),
+ * CTRLBUS_RX_FRAME with *frame filled in (frame may be NULL to skip it), or an event. It is the
+ * same decoder as ctrlbus_decoder_feed() with len 1 followed by ctrlbus_decoder_next(): the same
+ * rules, backtracking, inter-byte timeout (applied at now_ms before the byte) and counters, and
+ * any mix of push, feed and tick calls gives the results that feeding those bytes would.
+ *
+ * After a result other than NONE, take the others with ctrlbus_decoder_next() until it returns
+ * CTRLBUS_RX_NONE (backtracking can find several in bytes already buffered, and a timeout applied
+ * before the byte comes out ahead of what the byte completes); the byte itself has been taken
+ * either way. The usual loop:
+ *
+ *     for (ctrlbus_rx_t rx = ctrlbus_decoder_push(&dec, byte, now_ms, &frame);
+ *          rx != CTRLBUS_RX_NONE; rx = ctrlbus_decoder_next(&dec, &frame))
+ *         handle(rx, &frame);
+ *
+ * Pushing while results still wait takes nothing and returns CTRLBUS_RX_BUSY. A NULL decoder, or
+ * a zeroed one never initialised by ctrlbus_decoder_init(), takes nothing and returns CTRLBUS_RX_NONE. Not
+ * ISR-safe against other calls on the same decoder
+ * (as ctrlbus_decoder_feed()).
+ *
+ * Cost: a byte inside a frame whose length is known, stamped with the same millisecond as the
+ * byte before it, takes the inline path below (two comparisons, a store, an XOR: about 10
+ * instructions where it is inlined, no call). Any other byte (a header byte, the last byte of a
+ * frame, a new millisecond, garbage, a failure) calls ctrlbus_decoder_push_slow(), which settles
+ * the frame's first and last bytes in a few dozen instructions and hands the rest to the general
+ * path, whose cost is described at ctrlbus_decoder_feed(). Over a Core<->base session that averages
+ * about 21 instructions per byte on x86-64, calls included (bench/c/ctrlbus_parse.c, gcc -O2 and
+ * -Os; docs/performance.md). ctrlbus_decoder_push_slow() is the same function without the inline
+ * path, with the same contract: call ctrlbus_decoder_push(). */
+ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte, uint32_t now_ms,
+                                       ctrlbus_frame_t *frame);
+
+static inline ctrlbus_rx_t ctrlbus_decoder_push(ctrlbus_decoder_t *decoder, uint8_t byte,
+                                                uint32_t now_ms, ctrlbus_frame_t *frame)
+{
+    if (decoder == NULL) {
+        return CTRLBUS_RX_NONE;
+    }
+    uint32_t end = decoder->end;
+    /* complete_at is 0 unless the buffered candidate's size is known, nothing waits and the
+     * candidate fits the buffer where it is; the same millisecond means no timeout to apply. */
+    if (end + 1u < decoder->complete_at && now_ms == decoder->last_byte_ms) {
+        decoder->buffer[end] = byte;
+        decoder->end = end + 1u;
+        decoder->checksum = (uint8_t)(decoder->checksum ^ byte);
+        return CTRLBUS_RX_NONE;
+    }
+    return ctrlbus_decoder_push_slow(decoder, byte, now_ms, frame);
+}
 
 /* Applies the inter-byte timeout at now_ms without new bytes (the same as feeding 0 bytes). Call it
  * from the main loop; then take results with ctrlbus_decoder_next(). A partial frame older than the
@@ -281,7 +337,7 @@ ctrlbus_rx_t ctrlbus_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *f
 bool ctrlbus_decoder_busy(const ctrlbus_decoder_t *decoder);
 
 /* The contract's name of a result: "frame", "garbage", "checksum_error", "oversize", "timeout",
- * "empty_frame", or "none". Returns a string constant. ISR-safe. Cost: O(1). */
+ * "empty_frame", or "none" (and "busy" for CTRLBUS_RX_BUSY, which is not a result of the stream). Returns a string constant. ISR-safe. Cost: O(1). */
 const char *ctrlbus_rx_name(ctrlbus_rx_t rx);
 
 #ifdef __cplusplus
