@@ -31,6 +31,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from ctrlbus.compat import StrEnum
+from ctrlbus.constants import Profile
 from ctrlbus.errors import MessageError, MessageFormatError, UsageError
 from ctrlbus.frame import FLAG_LONG, FLAG_STANDARD, Frame, checksum
 from ctrlbus.messages import Cmd, decode_request
@@ -64,7 +65,7 @@ class Quirks(StrEnum):
     """How faithfully a simulated base imitates the reference firmware's receiver."""
 
     NONE = "none"  # the documented ctrlbus behaviour (docs/protocol.md §7-§8)
-    REFERENCE = "reference"  # base_ref v4 as observed (this module)
+    REFERENCE = Profile.REFERENCE.value  # base_ref v4 as observed (this module), named as its profile
 
 
 def parse_quirks(value: Quirks | str) -> Quirks:

@@ -36,6 +36,8 @@ from ctrlbus.frame import MAX_FRAME, Frame, StreamDecoder
 
 # Read times of the two lines closer than this are not trusted to order them: a USB adapter's
 # latency timer plus scheduling on a loaded machine.
+__all__ = ["DEFAULT_ANSWER_LIMIT_S", "DEFAULT_SKEW_S", "Piece", "TapMerger"]
+
 DEFAULT_SKEW_S = 0.05
 # How long a Core waits for an answer before it may send without one (our emulator's §11.6 value;
 # the real Core's is not published).

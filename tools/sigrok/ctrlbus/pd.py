@@ -244,6 +244,69 @@ def ok_fields(to, payload):
     raise Unsupported('no OK answer is defined for %s' % to)
 
 
+# Value sizes of the 0x21 configuration tree's fixed-size types (the reference's type table).
+TREE_FIXED = {0x10: 1, 0x11: 2, 0x1A: 4, 0x20: 4, 0x31: 1, 0x60: 0, 0x61: 0}
+TREE_MAX_DEPTH = 32
+
+
+def is_config_tree(payload):
+    '''Whether `payload` is one whole 0x21 configuration tree (an object, nothing after it).'''
+    def value(pos, type_code, depth):
+        if type_code in TREE_FIXED:
+            end = pos + TREE_FIXED[type_code]
+            if end > len(payload):
+                raise FormatError('truncated')
+            return end
+        if type_code == 0x30:
+            if pos >= len(payload) or pos + 1 + payload[pos] > len(payload):
+                raise FormatError('truncated string')
+            return pos + 1 + payload[pos]
+        if type_code in (0x40, 0x50):
+            if depth + 1 > TREE_MAX_DEPTH or pos >= len(payload):
+                raise FormatError('too deep or truncated')
+            count, pos = payload[pos], pos + 1
+            entry = 2 if type_code == 0x50 else 1
+            if count * entry > len(payload) - pos:
+                raise FormatError('count too large')
+            for _ in range(count):
+                pos += entry - 1  # an object's key
+                if pos >= len(payload):
+                    raise FormatError('truncated')
+                pos = value(pos + 1, payload[pos], depth + 1)
+            return pos
+        raise FormatError('unknown type 0x%02X' % type_code)
+    try:
+        return bool(payload) and payload[0] == 0x50 and value(1, 0x50, 0) == len(payload)
+    except FormatError:
+        return False
+
+
+# Every request with an OK answer, in ctrlbus's order: a lone OK answer is read as the one request
+# whose answer alone can be its payload (as `ctrlbus decode` guesses).
+OK_ANSWERS = ('BASE_CMD', 'CONNECT_BASE', 'GET_BASE_CONF', 'GET_BASE_CONF_ADV', 'GET_BASE_STATUS',
+              'GET_BASE_MOTOR_DATA', 'GET_BASE_SENSOR_DATA', 'GET_BASE_BUMPER_DATA',
+              'GET_CHARGER_DATA', 'SET_BASE_MOTOR', 'SET_V_AND_GET_DEADRECKON', 'POLL_BASE_CMD',
+              'POLL_BASE_ANS_CMD', 'SEND_EVENT', 'HEALTH_GET_HEALTH', 'HEALTH_GET_ERROR',
+              'HEALTH_CLR_ERROR')
+
+
+def guess_request(payload):
+    found = []
+    for name in OK_ANSWERS:
+        if name == 'GET_BASE_CONF_ADV':
+            if not is_config_tree(payload):
+                continue
+        else:
+            try:
+                ok_fields(name, payload)
+            except (FormatError, Unsupported):
+                continue
+        found.append(name)
+        if len(found) > 1:
+            return None
+    return found[0] if found else None
+
+
 def answer_fields(to, cmd, payload):
     '''[(field, value)] of an answer; `to` is the request it answers (None: unknown).'''
     if cmd == 0x02:
@@ -332,8 +395,30 @@ def value_text(context, key, value):
         return '%d (%s)' % (value, MOTOR_TYPES.get(value, 'unknown'))
     if isinstance(value, bytes):
         shown = ' '.join('%02X' % b for b in value[:16]) + (' ...' if len(value) > 16 else '')
-        return '%d bytes%s' % (len(value), ': ' + shown if value else '')
+        runs = printable_runs(value)
+        text = ('  text ' + ' '.join(quoted(run) for run in runs)) if runs else ''
+        return '%d bytes%s%s' % (len(value), ': ' + shown if value else '', text)
     return str(value)
+
+
+MIN_TEXT_RUN = 4  # printable ASCII shown beside the hex from this many characters on (as ctrlbus decode)
+
+
+def printable_runs(data):
+    runs, current = [], bytearray()
+    for byte in list(data) + [0]:
+        if 0x20 <= byte < 0x7F:
+            current.append(byte)
+            continue
+        if len(current) >= MIN_TEXT_RUN:
+            runs.append(current.decode('ascii'))
+        current = bytearray()
+    return runs
+
+
+def quoted(run):
+    # JSON's quoting of printable ASCII, as ctrlbus decode writes it.
+    return '"' + run.replace('\\', '\\\\').replace('"', '\\"') + '"'
 
 
 def position_text(position):
@@ -582,6 +667,10 @@ class Decoder(srd.Decoder):
             context = 'OK to %s' % to if cmd == 0x02 else label.split(' ')[0]
             if cmd == 0x02 and to is None:
                 error = 'unpaired'
+                guess = guess_request(payload)
+                if guess is not None:
+                    context = 'OK to %s' % guess
+                    fields = answer_fields(guess, cmd, payload)
             else:
                 try:
                     fields = answer_fields(to or 'SYNC', cmd, payload)
@@ -589,6 +678,6 @@ class Decoder(srd.Decoder):
                     error = 'format'
                 except Unsupported:
                     error = 'unsupported'
-        text = fields_text(context, fields) if error is None else ''
+        text = fields_text(context, fields) if error is None or fields is not None else ''
         full = label + (': ' + text if text else '') + (' [%s]' % error if error else '')
         self.put_ann(side, 1, frame[0][1], frame[-1][2], [full, label, label.split(' ')[0]])
