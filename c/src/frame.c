@@ -318,6 +318,13 @@ int32_t ctrlbus_frame_encode(uint8_t *out, size_t out_size, uint8_t cmd, const u
 #define STATE_HELD 0x80u
 /* Results or work that must come before any new byte. */
 #define STATE_WAITING (STATE_PENDING_MASK | STATE_RESCAN | STATE_HELD)
+/* frame.h's inline push relies on the same values. */
+typedef char frame_h_state_bits_match[(STATE_WAITING == CTRLBUS_DECODER_WAITING_ &&
+                                       STATE_EVENT_SINCE_FRAME == CTRLBUS_DECODER_EVENT_SINCE_FRAME_ &&
+                                       (STATE_EVENT_SINCE_FRAME | STATE_FLUSHING | STATE_IN_SPAN) ==
+                                           CTRLBUS_DECODER_EMPTY_CLEARS_)
+                                          ? 1
+                                          : -1];
 
 /* Time gaps at or beyond this are taken as "the clock went backwards" rather than a long wait. */
 #define TIME_BACKWARDS 0x80000000u
@@ -1028,11 +1035,25 @@ RARE static ctrlbus_rx_t push_general(ctrlbus_decoder_t *d, uint8_t byte, uint32
     return rx;
 }
 
+/* A byte that is not a flag, with nothing buffered and nothing waiting: rule 1 as scan() applies
+ * it (the byte is discarded; one garbage event per gap), settled here because garbage bursts come
+ * byte by byte. The event is handed out at once, as ctrlbus_decoder_next() would. */
+static ctrlbus_rx_t push_garbage(ctrlbus_decoder_t *d)
+{
+    if (d->stats != NULL) {
+        count(&d->stats->bytes_discarded);
+    }
+    bool quiet = (d->state & (STATE_IN_SPAN | STATE_EVENT_SINCE_FRAME)) != 0;
+    settle_empty(d);
+    d->complete_at = 0;
+    return quiet ? CTRLBUS_RX_NONE : raise_event(d, CTRLBUS_RX_GARBAGE);
+}
+
 /* complete_at - start for a long candidate armed at its flag: its first length byte takes push()'s
  * inline path and its second comes to push_slow(). No frame with a command is this short (a
  * standard frame with LEN 1 has 4 bytes, a long one 5), so it never means "the frame is complete".
  * The buffer is empty when a flag arrives, so start is 0 and these 3 bytes fit (max_frame >= 5). */
-#define LONG_HEADER_ARMED 3u
+#define LONG_HEADER_ARMED CTRLBUS_DECODER_LONG_HEADER_ARMED_
 
 ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte, uint32_t now_ms,
                                        ctrlbus_frame_t *frame)
@@ -1064,7 +1085,7 @@ ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte,
         return push_last_byte(d, byte, frame);
     } else if (end == start) {
         if ((byte | 0x40u) != CTRLBUS_FLAG_LONG) {
-            return push_general(d, byte, now_ms, frame); /* garbage */
+            return push_garbage(d);
         }
         /* a flag: a candidate starts (nothing buffered: start == end == 0, d->checksum == 0). A
          * long frame's first length byte can take the inline path. */

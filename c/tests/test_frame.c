@@ -615,6 +615,33 @@ static void test_push_takes_a_frame_byte_by_byte(void)
     CHECK_EQ(ctrlbus_decoder_push(NULL, 0x10, 0, &frame), CTRLBUS_RX_NONE);
 }
 
+static void test_push_inline_cases_match_feed(void)
+{
+    /* The cases frame.h's inline push settles itself (flags, length bytes, a frame's last byte,
+     * garbage after its gap's event) next to those it must leave to push_slow(): garbage before
+     * the event, LEN 0 (standard and long), a checksum error at the last byte, oversize lengths of
+     * both kinds in a 32-byte buffer. run_all_splits() compares results and counters with feed. */
+    static const char *const stream =
+        "10 03 01 AA 55 ED 33 44 40 99 50 04 00 02 01 02 03 56 10 00 10 10 02 03 07 16 50 00 00 50 "
+        "10 03 04 09 09 16 10 01 05 14 10 F0 10 02 06 01 15 50 40 00 50 02 00 07 02 57 55 10";
+    fixture_t f;
+    run_all_splits(&f, 32, 10, stream);
+    expect_results("frame:01:AA 55,garbage,frame-long:02:01 02 03,empty_frame,frame:03:07,"
+                   "empty_frame,checksum_error,frame:05:,oversize,frame:06:01,oversize,"
+                   "frame-long:07:02,garbage");
+    CHECK_EQ(f.stats.bytes_discarded, 4u + 3u + 4u + 6u + 2u + 3u + 1u);
+
+    /* The last byte with no frame to fill in: still counted, nothing left waiting. */
+    fixture_init(&f, 32, 10);
+    static const uint8_t request[] = {0x50, 0x02, 0x00, 0x09, 0x33, 0x68};
+    for (size_t i = 0; i + 1u < sizeof request; i++) {
+        CHECK_EQ(ctrlbus_decoder_push(&f.decoder, request[i], 3, NULL), CTRLBUS_RX_NONE);
+    }
+    CHECK_EQ(ctrlbus_decoder_push(&f.decoder, request[5], 3, NULL), CTRLBUS_RX_FRAME);
+    CHECK_EQ(f.stats.frames, 1u);
+    CHECK(!ctrlbus_decoder_busy(&f.decoder));
+}
+
 static void test_push_applies_the_timeout_before_the_byte(void)
 {
     /* The stale partial frame fails first; the byte that arrived late starts the next frame. */
@@ -1058,6 +1085,7 @@ int main(void)
     RUN(test_timeout_is_applied_before_new_bytes);
     RUN(test_timeout_across_clock_wraparound);
     RUN(test_push_takes_a_frame_byte_by_byte);
+    RUN(test_push_inline_cases_match_feed);
     RUN(test_push_applies_the_timeout_before_the_byte);
     RUN(test_push_refuses_a_byte_while_results_wait);
     RUN(test_push_and_feed_mix);

@@ -298,6 +298,28 @@ size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, siz
 ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte, uint32_t now_ms,
                                        ctrlbus_frame_t *frame);
 
+/* Whether ctrlbus_decoder_push() settles more cases inline, when nothing waits and (but for a
+ * flag into an empty buffer) the millisecond is the byte before's: a frame's flag and length bytes,
+ * its last byte when its checksum matches (the frame is returned at once), and a garbage byte
+ * outside any frame once its gap's event has been raised. That is about 60 more instructions of
+ * code at each call site, in exchange for three calls of ctrlbus_decoder_push_slow() per frame.
+ * On by default except when optimising for size; define it to 0 or 1 to choose. */
+#ifndef CTRLBUS_DECODER_PUSH_INLINE
+#if defined(__OPTIMIZE_SIZE__)
+#define CTRLBUS_DECODER_PUSH_INLINE 0
+#else
+#define CTRLBUS_DECODER_PUSH_INLINE 1
+#endif
+#endif
+/* Private, for the inline push (frame.c checks that they match its own): the decoder->state bits
+ * that mean a result or a rescan waits, the bit "an event was raised since the last frame", the
+ * bits that a buffer running empty clears, and complete_at for a long flag alone in the buffer
+ * (its first length byte takes the inline path, the second is checked like a standard length). */
+#define CTRLBUS_DECODER_WAITING_ 0x97u
+#define CTRLBUS_DECODER_EVENT_SINCE_FRAME_ 0x08u
+#define CTRLBUS_DECODER_EMPTY_CLEARS_ 0x68u
+#define CTRLBUS_DECODER_LONG_HEADER_ARMED_ 3u
+
 static inline ctrlbus_rx_t ctrlbus_decoder_push(ctrlbus_decoder_t *decoder, uint8_t byte,
                                                 uint32_t now_ms, ctrlbus_frame_t *frame)
 {
@@ -305,14 +327,83 @@ static inline ctrlbus_rx_t ctrlbus_decoder_push(ctrlbus_decoder_t *decoder, uint
         return CTRLBUS_RX_NONE;
     }
     uint32_t end = decoder->end;
+    uint32_t complete_at = decoder->complete_at;
     /* complete_at is 0 unless the buffered candidate's size is known, nothing waits and the
      * candidate fits the buffer where it is; the same millisecond means no timeout to apply. */
-    if (end + 1u < decoder->complete_at && now_ms == decoder->last_byte_ms) {
+    if (end + 1u < complete_at && now_ms == decoder->last_byte_ms) {
         decoder->buffer[end] = byte;
         decoder->end = end + 1u;
         decoder->checksum = (uint8_t)(decoder->checksum ^ byte);
         return CTRLBUS_RX_NONE;
     }
+#if CTRLBUS_DECODER_PUSH_INLINE
+    if ((decoder->state & CTRLBUS_DECODER_WAITING_) == 0u && decoder->buffer != NULL) {
+        uint8_t *buffer = decoder->buffer;
+        if (end == 0u) {
+            /* Nothing buffered (start is 0 too): a flag starts a candidate, garbage after its
+             * gap's event is only counted. */
+            if ((byte | 0x40u) == CTRLBUS_FLAG_LONG) {
+                buffer[0] = byte;
+                decoder->end = 1u;
+                decoder->checksum = byte;
+                decoder->last_byte_ms = now_ms;
+                decoder->complete_at =
+                    byte == CTRLBUS_FLAG_LONG ? CTRLBUS_DECODER_LONG_HEADER_ARMED_ : 0u;
+                return CTRLBUS_RX_NONE;
+            }
+            if (decoder->state & CTRLBUS_DECODER_EVENT_SINCE_FRAME_) {
+                if (decoder->stats != NULL) {
+                    decoder->stats->bytes_discarded += 1u;
+                }
+                decoder->last_byte_ms = now_ms;
+                return CTRLBUS_RX_NONE;
+            }
+        } else if (now_ms == decoder->last_byte_ms) {
+            if (end + 1u == complete_at && complete_at > CTRLBUS_DECODER_LONG_HEADER_ARMED_) {
+                /* The armed candidate's last byte: a frame when its checksum matches. */
+                if ((decoder->checksum ^ byte) == 0u) {
+                    uint32_t start = decoder->start;
+                    const uint8_t *cand = buffer + start;
+                    buffer[end] = byte;
+                    if (frame != NULL) {
+                        bool is_long = cand[0] == CTRLBUS_FLAG_LONG;
+                        uint32_t header = is_long ? 3u : 2u;
+                        frame->is_long = is_long;
+                        frame->cmd = cand[header];
+                        frame->payload = cand + header + 1u;
+                        frame->payload_len = (size_t)(complete_at - start - header - 2u);
+                    }
+                    if (decoder->stats != NULL) {
+                        decoder->stats->frames += 1u;
+                    }
+                    decoder->start = decoder->end = decoder->complete_at = 0u;
+                    decoder->checksum = 0u;
+                    decoder->state =
+                        (uint8_t)(decoder->state & (uint8_t)~CTRLBUS_DECODER_EMPTY_CLEARS_);
+                    return CTRLBUS_RX_FRAME;
+                }
+            } else {
+                /* A length byte: end 1 with the checksum 0x10 is a standard flag alone at
+                 * buffer[0]; end 2 with complete_at LONG_HEADER_ARMED_ a long flag and its first
+                 * length byte. */
+                uint32_t size = 0u; /* of the whole frame */
+                if (end == 1u && decoder->checksum == CTRLBUS_FLAG_STANDARD) {
+                    size = byte + 3u;
+                } else if (end == 2u && complete_at == CTRLBUS_DECODER_LONG_HEADER_ARMED_) {
+                    size = (buffer[1] | (uint32_t)byte << 8) + 4u;
+                }
+                /* a frame with a command (LEN > 0) that fits: arm the inline path */
+                if (size > end + 2u && size <= decoder->max_frame) {
+                    buffer[end] = byte;
+                    decoder->end = end + 1u;
+                    decoder->checksum = (uint8_t)(decoder->checksum ^ byte);
+                    decoder->complete_at = size;
+                    return CTRLBUS_RX_NONE;
+                }
+            }
+        }
+    }
+#endif
     return ctrlbus_decoder_push_slow(decoder, byte, now_ms, frame);
 }
 
