@@ -89,6 +89,24 @@ static void push_all(const unsigned char *data, size_t size, tally_t *tally)
     }
 }
 
+static void take_all(const unsigned char *data, size_t size, size_t chunk, tally_t *tally)
+{
+    uint8_t buffer[DECODER_BUFFER];
+    ctrlbus_decoder_t dec;
+    if (ctrlbus_decoder_init(&dec, buffer, sizeof buffer, CTRLBUS_DEFAULT_TIMEOUT_MS, NULL) != CTRLBUS_OK) {
+        fprintf(stderr, "ctrlbus_decoder_init failed\n");
+        exit(2);
+    }
+    ctrlbus_frame_t frame;
+    for (size_t pos = 0; pos < size; pos += chunk) {
+        const uint8_t *bytes = data + pos;
+        size_t len = size - pos < chunk ? size - pos : chunk;
+        for (ctrlbus_rx_t rx; (rx = ctrlbus_decoder_take(&dec, &bytes, &len, 0u, &frame)) != CTRLBUS_RX_NONE;) {
+            tally_add(tally, rx);
+        }
+    }
+}
+
 static void decode(const unsigned char *data, size_t size, size_t chunk, tally_t *tally)
 {
     uint8_t buffer[DECODER_BUFFER];
@@ -123,6 +141,9 @@ int main(int argc, char **argv)
     } else if (strcmp(argv[1], "push") == 0) {
         push_all(data, size, &tally);
     } else if (strcmp(argv[1], "chunks") == 0) {
+        chunk = CHUNK;
+        take_all(data, size, chunk, &tally);
+    } else if (strcmp(argv[1], "feedchunks") == 0) {
         chunk = CHUNK;
         decode(data, size, chunk, &tally);
     } else {

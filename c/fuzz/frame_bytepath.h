@@ -27,6 +27,8 @@ size_t lean_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, size_t
 void lean_decoder_tick(ctrlbus_decoder_t *decoder, uint32_t now_ms);
 ctrlbus_rx_t lean_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *frame);
 bool lean_decoder_busy(const ctrlbus_decoder_t *decoder);
+ctrlbus_rx_t lean_decoder_take(ctrlbus_decoder_t *decoder, const uint8_t **data, size_t *len,
+                               uint32_t now_ms, ctrlbus_frame_t *frame);
 ctrlbus_rx_t lean_decoder_push(ctrlbus_decoder_t *decoder, uint8_t byte, uint32_t now_ms,
                                ctrlbus_frame_t *frame);
 

@@ -15,6 +15,7 @@
 #define ctrlbus_decoder_push TWIN(decoder_push_inline)
 #define ctrlbus_decoder_push_slow TWIN(decoder_push_slow)
 #define ctrlbus_decoder_reset TWIN(decoder_reset)
+#define ctrlbus_decoder_take TWIN(decoder_take)
 #define ctrlbus_decoder_tick TWIN(decoder_tick)
 #define ctrlbus_error_name TWIN(error_name)
 #define ctrlbus_frame_encode TWIN(frame_encode)
@@ -43,3 +44,4 @@ ctrlbus_rx_t TWIN(decoder_push)(ctrlbus_decoder_t *decoder, uint8_t byte, uint32
 {
     return TWIN(decoder_push_inline)(decoder, byte, now_ms, frame);
 }
+

@@ -23,7 +23,11 @@
  *      nothing.
  *   E  the byte-path twin through its push, as D: the same again.
  *   F  the lean twin (frame_lean.c: the bulk path at the level size-optimised builds get), fed the
- *      same cuts as A: the same results and counters. */
+ *      same cuts as A: the same results and counters.
+ *   G  frame.c's decoder through ctrlbus_decoder_take(), the same cuts, each taken until it returns
+ *      NONE: the same results and counters as A; every frame checked where it lies (in the
+ *      decoder's buffer, or in place in the cut), the cut used up exactly.
+ *   H  the lean twin through its take, as G. */
 #include <string.h>
 
 #include "frame_bytepath.h"
@@ -42,7 +46,7 @@ typedef struct {
     uint64_t frame_bytes; /* bytes of the frames it handed out */
 } run_t;
 
-static fuzz_log_t log_a, log_c, log_d, log_e, log_f;
+static fuzz_log_t log_a, log_c, log_d, log_e, log_f, log_g, log_h;
 static uint32_t max_frame;
 
 static uint64_t frame_size(const ctrlbus_frame_t *frame)
@@ -221,6 +225,45 @@ static void push_bytewise(run_t *r, push_fn push, next_fn next, const uint8_t *d
     check_accounting(r);
 }
 
+typedef ctrlbus_rx_t (*take_fn)(ctrlbus_decoder_t *, const uint8_t **, size_t *, uint32_t,
+                                ctrlbus_frame_t *);
+
+static ctrlbus_rx_t take_ours(ctrlbus_decoder_t *d, const uint8_t **data, size_t *len, uint32_t now,
+                              ctrlbus_frame_t *f)
+{
+    return ctrlbus_decoder_take(d, data, len, now, f);
+}
+
+/* Decoders G and H: one cut through take, until it returns NONE. */
+static void take_cut(run_t *r, take_fn take, const uint8_t *data, size_t len, uint32_t now)
+{
+    const uint8_t *at = data;
+    size_t left = len;
+    size_t results = 0;
+    ctrlbus_frame_t frame;
+    for (ctrlbus_rx_t rx; (rx = take(&r->decoder, &at, &left, now, &frame)) != CTRLBUS_RX_NONE;) {
+        FUZZ_CHECK(rx >= CTRLBUS_RX_FRAME && rx <= CTRLBUS_RX_EMPTY_FRAME);
+        FUZZ_CHECK(left <= len && at == data + (len - left));
+        FUZZ_CHECK(++results <= len + (size_t)max_frame + 2u);
+        if (rx == CTRLBUS_RX_FRAME) {
+            uintptr_t payload = (uintptr_t)frame.payload;
+            if (payload >= (uintptr_t)data && payload < (uintptr_t)data + len) {
+                /* handed out in place: the whole frame lies in the cut */
+                fuzz_check_frame(&frame, data, len);
+                FUZZ_CHECK(frame_size(&frame) <= max_frame);
+            } else {
+                fuzz_check_frame(&frame, r->buffer.buffer, max_frame);
+            }
+            r->frame_bytes += frame_size(&frame);
+        }
+        fuzz_log_add(r->log, rx, &frame);
+    }
+    FUZZ_CHECK(left == 0 && at == data + len);
+    r->taken += len;
+    fuzz_guarded_check(&r->buffer);
+    check_accounting(r);
+}
+
 typedef int32_t (*init_fn)(ctrlbus_decoder_t *, uint8_t *, size_t, uint16_t,
                           ctrlbus_decoder_stats_t *);
 
@@ -263,13 +306,15 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     const uint8_t *stream = in.data;
     size_t stream_len = in.left;
 
-    static run_t a, b, c, d, e, f;
+    static run_t a, b, c, d, e, f, g, h;
     run_init(&a, &log_a, timeout, ctrlbus_decoder_init);
     run_init(&b, NULL, timeout, bytepath_decoder_init); /* compared with A call by call */
     run_init(&c, &log_c, timeout, ctrlbus_decoder_init);
     run_init(&d, &log_d, timeout, ctrlbus_decoder_init);
     run_init(&e, &log_e, timeout, bytepath_decoder_init);
     run_init(&f, &log_f, timeout, lean_decoder_init);
+    run_init(&g, &log_g, timeout, ctrlbus_decoder_init);
+    run_init(&h, &log_h, timeout, lean_decoder_init);
 
     uint32_t now = fuzz_rng(&rng);
     for (size_t pos = 0; pos < stream_len;) {
@@ -284,6 +329,10 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             drain_with(&e, bytepath_decoder_next);
             lean_decoder_tick(&f.decoder, tick_at);
             drain_with(&f, lean_decoder_next);
+            ctrlbus_decoder_tick(&g.decoder, tick_at);
+            drain_with(&g, ctrlbus_decoder_next);
+            lean_decoder_tick(&h.decoder, tick_at);
+            drain_with(&h, lean_decoder_next);
             now = tick_at;
         }
         now += time_step(&rng, timeout);
@@ -297,6 +346,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         push_bytewise(&d, push_ours, ctrlbus_decoder_next, stream + pos, cut, now);
         push_bytewise(&e, bytepath_decoder_push, bytepath_decoder_next, stream + pos, cut, now);
         feed_cut(&f, lean_decoder_feed, lean_decoder_next, stream + pos, cut, now);
+        take_cut(&g, take_ours, stream + pos, cut, now);
+        take_cut(&h, lean_decoder_take, stream + pos, cut, now);
         pos += cut;
     }
     /* The line goes quiet: a partial frame left over times out. */
@@ -310,22 +361,32 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     drain_with(&e, bytepath_decoder_next);
     lean_decoder_tick(&f.decoder, end);
     drain_with(&f, lean_decoder_next);
+    ctrlbus_decoder_tick(&g.decoder, end);
+    drain_with(&g, ctrlbus_decoder_next);
+    lean_decoder_tick(&h.decoder, end);
+    drain_with(&h, lean_decoder_next);
 
     FUZZ_CHECK(a.taken == stream_len && c.taken == stream_len);
     FUZZ_CHECK(d.taken == stream_len && e.taken == stream_len && f.taken == stream_len);
+    FUZZ_CHECK(g.taken == stream_len && h.taken == stream_len);
     FUZZ_CHECK(fuzz_log_equal(&log_a, &log_c));
     FUZZ_CHECK(fuzz_log_equal(&log_a, &log_d));
     FUZZ_CHECK(fuzz_log_equal(&log_a, &log_e));
     FUZZ_CHECK(fuzz_log_equal(&log_a, &log_f));
+    FUZZ_CHECK(fuzz_log_equal(&log_a, &log_g));
+    FUZZ_CHECK(fuzz_log_equal(&log_a, &log_h));
     FUZZ_CHECK(memcmp(&a.stats, &c.stats, sizeof a.stats) == 0);
     FUZZ_CHECK(memcmp(&a.stats, &d.stats, sizeof a.stats) == 0);
     FUZZ_CHECK(memcmp(&a.stats, &e.stats, sizeof a.stats) == 0);
     FUZZ_CHECK(memcmp(&a.stats, &f.stats, sizeof a.stats) == 0);
+    FUZZ_CHECK(memcmp(&a.stats, &g.stats, sizeof a.stats) == 0);
+    FUZZ_CHECK(memcmp(&a.stats, &h.stats, sizeof a.stats) == 0);
     if (timeout != 0) {
         /* After the final timeout nothing is left: every byte is in a frame or discarded. */
         FUZZ_CHECK(!ctrlbus_decoder_busy(&a.decoder) && !ctrlbus_decoder_busy(&c.decoder));
         FUZZ_CHECK(!ctrlbus_decoder_busy(&d.decoder) && !bytepath_decoder_busy(&e.decoder));
-        FUZZ_CHECK(!lean_decoder_busy(&f.decoder));
+        FUZZ_CHECK(!lean_decoder_busy(&f.decoder) && !ctrlbus_decoder_busy(&g.decoder));
+        FUZZ_CHECK(!lean_decoder_busy(&h.decoder));
         FUZZ_CHECK(a.taken == a.frame_bytes + a.stats.bytes_discarded);
     }
     return 0;

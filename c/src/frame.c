@@ -610,9 +610,10 @@ static void move_to_front(ctrlbus_decoder_t *d)
 #if CTRLBUS_DECODER_FAST
 /* ---- the bulk path: the same rules, many bytes per step ------------------------------------- */
 
-/* Appends n bytes to the buffer at dst and returns checksum XOR all of them. A machine word at a
- * time: each word goes through memcpy, which compilers turn into plain loads and stores that are
- * safe at any alignment; the tail is taken in halves (4, 2, 1 bytes). */
+/* Appends n bytes to the buffer at dst (unless dst is NULL: then it only reads them) and returns
+ * checksum XOR all of them. A machine word at a time: each word goes through memcpy, which
+ * compilers turn into plain loads and stores that are safe at any alignment; the tail is taken in
+ * halves (4, 2, 1 bytes). Where it is inlined with a NULL dst, the stores vanish. */
 IN_LINE static uint8_t copy_xor(uint8_t *dst, const uint8_t *src, size_t n, uint8_t checksum)
 {
     if (n >= 2u) {
@@ -620,28 +621,34 @@ IN_LINE static uint8_t copy_xor(uint8_t *dst, const uint8_t *src, size_t n, uint
         while (n >= sizeof acc) {
             size_t word;
             memcpy(&word, src, sizeof word);
-            memcpy(dst, &word, sizeof word);
+            if (dst != NULL) {
+                memcpy(dst, &word, sizeof word);
+                dst += sizeof word;
+            }
             acc ^= word;
             src += sizeof word;
-            dst += sizeof word;
             n -= sizeof word;
         }
         if (sizeof acc > 4u && n >= 4u) {
             uint32_t word;
             memcpy(&word, src, 4u);
-            memcpy(dst, &word, 4u);
+            if (dst != NULL) {
+                memcpy(dst, &word, 4u);
+                dst += 4;
+            }
             acc ^= (size_t)word; /* only compiled in with a 64-bit size_t */
             src += 4;
-            dst += 4;
             n -= 4u;
         }
         if (n >= 2u) {
             uint16_t word;
             memcpy(&word, src, 2u);
-            memcpy(dst, &word, 2u);
+            if (dst != NULL) {
+                memcpy(dst, &word, 2u);
+                dst += 2;
+            }
             acc ^= word;
             src += 2;
-            dst += 2;
             n -= 2u;
         }
         for (unsigned shift = (unsigned)sizeof acc * 4u; shift >= 8u; shift /= 2u) {
@@ -650,7 +657,9 @@ IN_LINE static uint8_t copy_xor(uint8_t *dst, const uint8_t *src, size_t n, uint
         checksum = (uint8_t)(checksum ^ (acc & 0xFFu));
     }
     if (n != 0) {
-        *dst = *src;
+        if (dst != NULL) {
+            *dst = *src;
+        }
         checksum ^= *src;
     }
     return checksum;
@@ -946,6 +955,170 @@ ctrlbus_rx_t ctrlbus_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *f
     }
     return hand_out(d, frame, rx);
 #endif
+}
+
+/* ---- take: results straight from the caller's bytes ----------------------------------------- */
+
+/* ctrlbus_decoder_take() in general: results first, then feeds, as its contract spells out. */
+OUT_OF_LINE static ctrlbus_rx_t take_general(ctrlbus_decoder_t *d, const uint8_t **data,
+                                             size_t *len, uint32_t now_ms, ctrlbus_frame_t *frame)
+{
+    if (*data == NULL) {
+        *len = 0; /* nothing to read: as feed(), report the bytes taken */
+    }
+    for (;;) {
+        ctrlbus_rx_t rx = ctrlbus_decoder_next(d, frame);
+        if (rx != CTRLBUS_RX_NONE || *len == 0) {
+            return rx;
+        }
+        size_t used = ctrlbus_decoder_feed(d, *data, *len, now_ms);
+        *data += used;
+        *len -= used;
+        if (used == 0 && !(d->state & STATE_WAITING)) {
+            return CTRLBUS_RX_NONE; /* cannot happen with a usable decoder; no spinning if it did */
+        }
+    }
+}
+
+#if CTRLBUS_DECODER_FAST
+/* ctrlbus_decoder_take() hands out the frame whose bytes are at bytes[0..): its header and LEN are
+ * known. Nothing stays buffered; what the scan would leave behind is settled here (rules 2-3 and
+ * the buffer running empty). */
+IN_LINE static ctrlbus_rx_t take_frame(ctrlbus_decoder_t *d, const uint8_t *bytes, uint32_t header,
+                                       uint32_t len_field, uint32_t now_ms, ctrlbus_frame_t *frame)
+{
+    if (frame != NULL) {
+        frame->is_long = header == 3u;
+        frame->cmd = bytes[header];
+        frame->payload = bytes + header + 1u;
+        frame->payload_len = (size_t)(len_field - 1u);
+    }
+    if (d->stats != NULL) {
+        count(&d->stats->frames);
+    }
+    d->start = d->end = d->complete_at = 0;
+    d->checksum = 0;
+    clear_flag(d, STATE_EVENT_SINCE_FRAME | STATE_FLUSHING | STATE_IN_SPAN);
+    d->last_byte_ms = now_ms;
+    return CTRLBUS_RX_FRAME;
+}
+#endif
+
+ctrlbus_rx_t ctrlbus_decoder_take(ctrlbus_decoder_t *decoder, const uint8_t **data, size_t *len,
+                                  uint32_t now_ms, ctrlbus_frame_t *frame)
+{
+    ctrlbus_decoder_t *d = decoder;
+    if (d == NULL || data == NULL || len == NULL) {
+        return CTRLBUS_RX_NONE;
+    }
+#if CTRLBUS_DECODER_FAST
+    /* The common cases when nothing waits (so next() has nothing to hand out), each settled as the
+     * feed and next() calls would settle it; anything else takes the general path. */
+    const uint8_t *in = *data;
+    size_t n = *len;
+    if (!(d->state & STATE_WAITING) && d->buffer != NULL && in != NULL) {
+        if (n == 0) {
+            return CTRLBUS_RX_NONE;
+        }
+        if (d->end == 0u) {
+            /* Nothing buffered (start is 0 too). Rule 1 first: garbage up to the next flag is
+             * discarded, with one event per gap. */
+            if ((in[0] | 0x40u) != CTRLBUS_FLAG_LONG) {
+                size_t skip = 1;
+                while (skip < n && (in[skip] | 0x40u) != CTRLBUS_FLAG_LONG) {
+                    skip++;
+                }
+                if (d->stats != NULL) {
+                    d->stats->bytes_discarded += (uint32_t)skip;
+                }
+                d->last_byte_ms = now_ms;
+                *data = in + skip;
+                *len = n - skip;
+                if (!(d->state & STATE_EVENT_SINCE_FRAME)) {
+                    return raise_event(d, CTRLBUS_RX_GARBAGE);
+                }
+                if (skip == n) {
+                    return CTRLBUS_RX_NONE;
+                }
+                in += skip;
+                n -= skip;
+            }
+            /* A candidate starts the input. */
+            uint32_t header = header_size(in[0]);
+            uint32_t len_field = n < header ? 0u : length_field(in, header);
+            uint32_t size = header + len_field + 1u;
+            if (size > d->max_frame) {
+                return take_general(d, data, len, now_ms, frame);
+            }
+            if (n < header || size > n) {
+                /* the start of a frame that goes on beyond the input: buffer it all */
+                d->checksum = copy_xor(d->buffer, in, n, 0);
+                d->end = (uint32_t)n;
+                d->last_byte_ms = now_ms;
+                d->complete_at = 0;
+                *data = in + n;
+                *len = 0;
+                return CTRLBUS_RX_NONE;
+            }
+            /* a whole frame: checked in place, handed out without a copy */
+            if (len_field == 0 || copy_xor(NULL, in, (size_t)size, 0) != 0) {
+                return take_general(d, data, len, now_ms, frame);
+            }
+            *data = in + size;
+            *len = n - size;
+            return take_frame(d, in, header, len_field, now_ms, frame);
+        }
+        /* More of the buffered candidate, when no timeout applies and it fits the buffer where
+         * it lies. */
+        uint32_t start = d->start;
+        const uint8_t *cand = d->buffer + start;
+        uint32_t header = header_size(cand[0]);
+        uint32_t have = d->end - start;
+        if (now_ms == d->last_byte_ms || !timed_out(d, now_ms)) {
+            const uint8_t *head = cand;
+            uint8_t split_header[3];
+            if (have < header) {
+                /* its header is split between the buffer and the input (and must fit where
+                 * it lies: the general path moves a candidate at the buffer's end) */
+                if (start + header > d->max_frame) {
+                    return take_general(d, data, len, now_ms, frame);
+                }
+                if (n < header - have) {
+                    d->checksum = copy_xor(d->buffer + d->end, in, n, d->checksum);
+                    d->end += (uint32_t)n;
+                    d->last_byte_ms = now_ms;
+                    *data = in + n;
+                    *len = 0;
+                    return CTRLBUS_RX_NONE;
+                }
+                for (uint32_t i = 0; i < header; i++) {
+                    split_header[i] = i < have ? cand[i] : in[i - have];
+                }
+                head = split_header;
+            }
+            uint32_t len_field = length_field(head, header);
+            uint32_t complete_at = start + header + len_field + 1u;
+            uint32_t need = complete_at - d->end;
+            if (len_field != 0 && complete_at <= d->max_frame) {
+                if (need > n) {
+                    /* still not complete: buffer the input */
+                    d->checksum = copy_xor(d->buffer + d->end, in, n, d->checksum);
+                    d->end += (uint32_t)n;
+                    d->last_byte_ms = now_ms;
+                    *data = in + n;
+                    *len = 0;
+                    return CTRLBUS_RX_NONE;
+                }
+                if (copy_xor(d->buffer + d->end, in, need, d->checksum) == 0) {
+                    *data = in + need;
+                    *len = n - need;
+                    return take_frame(d, cand, header, len_field, now_ms, frame);
+                }
+            }
+        }
+    }
+#endif
+    return take_general(d, data, len, now_ms, frame);
 }
 
 /* ---- push: one byte per call ---------------------------------------------------------------- */

@@ -99,9 +99,30 @@ static void push_hex(fixture_t *f, const char *hex, uint32_t now_ms)
     push_bytes(&log_a, &f->decoder, data, len, now_ms);
 }
 
-/* Runs hex through a fresh decoder whole, byte by byte, in pieces of 2, 3 and 7, and through
- * ctrlbus_decoder_push() one byte at a time, expecting the same results each time; leaves the
- * whole-feed run in log_a and its fixture in *f. */
+/* Takes len bytes through ctrlbus_decoder_take() in pieces of `piece` bytes (0: whole), each
+ * until it returns CTRLBUS_RX_NONE; appends the results to log. */
+static void take_bytes(rx_log_t *log, ctrlbus_decoder_t *decoder, const uint8_t *data, size_t len,
+                       uint32_t now_ms, size_t piece)
+{
+    while (len > 0) {
+        size_t offered = piece == 0 || piece > len ? len : piece;
+        const uint8_t *at = data;
+        size_t left = offered;
+        ctrlbus_frame_t frame;
+        for (ctrlbus_rx_t rx; (rx = ctrlbus_decoder_take(decoder, &at, &left, now_ms, &frame)) !=
+                              CTRLBUS_RX_NONE;) {
+            rx_log_add(log, rx, &frame);
+        }
+        CHECK(left == 0 && at == data + offered);
+        data += offered;
+        len -= offered;
+    }
+}
+
+/* Runs hex through a fresh decoder whole, byte by byte, in pieces of 2, 3 and 7, through
+ * ctrlbus_decoder_push() one byte at a time, and through ctrlbus_decoder_take() whole and in pieces
+ * of 1, 3 and 7, expecting the same results each time; leaves the whole-feed run in log_a and its
+ * fixture in *f. */
 static void run_all_splits(fixture_t *f, size_t buffer_size, uint16_t timeout_ms, const char *hex)
 {
     static const size_t pieces[] = {1, 2, 3, 7};
@@ -132,6 +153,19 @@ static void run_all_splits(fixture_t *f, size_t buffer_size, uint16_t timeout_ms
     }
     CHECK(memcmp(&f->stats, &pushed.stats, sizeof f->stats) == 0);
     CHECK(fixture_canary_intact(&pushed));
+    static const size_t take_pieces[] = {0, 1, 3, 7};
+    for (size_t i = 0; i < sizeof take_pieces / sizeof take_pieces[0]; i++) {
+        fixture_t taken;
+        fixture_init(&taken, buffer_size, timeout_ms);
+        rx_log_clear(&log_b);
+        take_bytes(&log_b, &taken.decoder, data, len, 0, take_pieces[i]);
+        if (!CHECK(rx_log_equal(&log_a, &log_b))) {
+            rx_log_print("whole", &log_a);
+            rx_log_print("taken", &log_b);
+        }
+        CHECK(memcmp(&f->stats, &taken.stats, sizeof f->stats) == 0);
+        CHECK(fixture_canary_intact(&taken));
+    }
 }
 
 /* ---- encoder -------------------------------------------------------------------------------- */
@@ -642,6 +676,53 @@ static void test_push_inline_cases_match_feed(void)
     CHECK(!ctrlbus_decoder_busy(&f.decoder));
 }
 
+static void test_take_hands_out_frames_in_place(void)
+{
+    /* garbage, a whole frame, then a frame split between two calls */
+    static const uint8_t first[] = {0x33, 0x10, 0x03, 0x01, 0xAA, 0x55, 0xED, 0x50, 0x03};
+    static const uint8_t second[] = {0x00, 0x02, 0x11, 0x22, 0x62, 0x10};
+    fixture_t f;
+    fixture_init(&f, 64, 10);
+    const uint8_t *at = first;
+    size_t left = sizeof first;
+    ctrlbus_frame_t frame;
+    CHECK_EQ(ctrlbus_decoder_take(&f.decoder, &at, &left, 5, &frame), CTRLBUS_RX_GARBAGE);
+    CHECK_EQ(ctrlbus_decoder_take(&f.decoder, &at, &left, 5, &frame), CTRLBUS_RX_FRAME);
+    CHECK(frame.cmd == 0x01 && frame.payload_len == 2 && frame.payload == first + 4);
+    CHECK(at == first + 7 && left == 2);
+    CHECK_EQ(ctrlbus_decoder_take(&f.decoder, &at, &left, 5, &frame), CTRLBUS_RX_NONE);
+    CHECK(left == 0 && ctrlbus_decoder_busy(&f.decoder));
+    at = second;
+    left = sizeof second;
+    CHECK_EQ(ctrlbus_decoder_take(&f.decoder, &at, &left, 6, &frame), CTRLBUS_RX_FRAME);
+    CHECK(frame.is_long && frame.cmd == 0x02 && frame.payload_len == 2);
+    CHECK(frame.payload[0] == 0x11 && frame.payload[1] == 0x22);
+    CHECK(frame.payload >= f.buffer && frame.payload < f.buffer + f.buffer_size);
+    CHECK(left == 1);
+    CHECK_EQ(ctrlbus_decoder_take(&f.decoder, &at, &left, 6, &frame), CTRLBUS_RX_NONE);
+    CHECK(left == 0);
+    CHECK_EQ(f.stats.frames, 2u);
+    CHECK_EQ(f.stats.bytes_discarded, 1u);
+    /* The flag left buffered times out at the next call's time, before its bytes. */
+    static const uint8_t later[] = {0x10, 0x01, 0x05, 0x14};
+    at = later;
+    left = sizeof later;
+    CHECK_EQ(ctrlbus_decoder_take(&f.decoder, &at, &left, 20, &frame), CTRLBUS_RX_TIMEOUT);
+    CHECK_EQ(ctrlbus_decoder_take(&f.decoder, &at, &left, 20, &frame), CTRLBUS_RX_FRAME);
+    CHECK(frame.cmd == 0x05 && frame.payload_len == 0);
+    CHECK_EQ(ctrlbus_decoder_take(&f.decoder, &at, &left, 20, &frame), CTRLBUS_RX_NONE);
+
+    /* Bad arguments take nothing and never crash. */
+    at = later;
+    left = sizeof later;
+    CHECK_EQ(ctrlbus_decoder_take(NULL, &at, &left, 0, &frame), CTRLBUS_RX_NONE);
+    CHECK_EQ(ctrlbus_decoder_take(&f.decoder, NULL, &left, 0, &frame), CTRLBUS_RX_NONE);
+    CHECK_EQ(ctrlbus_decoder_take(&f.decoder, &at, NULL, 0, &frame), CTRLBUS_RX_NONE);
+    at = NULL;
+    CHECK_EQ(ctrlbus_decoder_take(&f.decoder, &at, &left, 0, &frame), CTRLBUS_RX_NONE);
+    CHECK(left == 0);
+}
+
 static void test_push_applies_the_timeout_before_the_byte(void)
 {
     /* The stale partial frame fails first; the byte that arrived late starts the next frame. */
@@ -1086,6 +1167,7 @@ int main(void)
     RUN(test_timeout_across_clock_wraparound);
     RUN(test_push_takes_a_frame_byte_by_byte);
     RUN(test_push_inline_cases_match_feed);
+    RUN(test_take_hands_out_frames_in_place);
     RUN(test_push_applies_the_timeout_before_the_byte);
     RUN(test_push_refuses_a_byte_while_results_wait);
     RUN(test_push_and_feed_mix);

@@ -265,6 +265,41 @@ void ctrlbus_decoder_reset(ctrlbus_decoder_t *decoder);
 size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, size_t len,
                             uint32_t now_ms);
 
+/* Private, for the inline push (frame.c checks that they match its own): the decoder->state bits
+ * that mean a result or a rescan waits, the bit "an event was raised since the last frame", the
+ * bits that a buffer running empty clears, and complete_at for a long flag alone in the buffer
+ * (its first length byte takes the inline path, the second is checked like a standard length). */
+#define CTRLBUS_DECODER_WAITING_ 0x97u
+#define CTRLBUS_DECODER_EVENT_SINCE_FRAME_ 0x08u
+#define CTRLBUS_DECODER_EMPTY_CLEARS_ 0x68u
+#define CTRLBUS_DECODER_LONG_HEADER_ARMED_ 3u
+
+/* Decodes the caller's bytes data[0..len) (passed as *data and *len) and returns the next result
+ * in stream order, taking bytes as it needs them: *data and *len are advanced past the bytes taken.
+ * Returns CTRLBUS_RX_FRAME with *frame filled in (frame may be NULL), an event, or CTRLBUS_RX_NONE
+ * once every byte has been taken and no result waits (*len is then 0). It is the same decoder as
+ * the feed loop shown at ctrlbus_decoder_feed() (its results, counters and timeout, all bytes
+ * stamped now_ms), in one call per result; any mix with push, feed, next and tick calls gives the
+ * results that feeding those bytes would. The usual loop, for a chunk of received bytes:
+ *
+ *     for (ctrlbus_rx_t rx; (rx = ctrlbus_decoder_take(&dec, &data, &len, now_ms, &frame)) !=
+ *                           CTRLBUS_RX_NONE;)
+ *         handle(rx, &frame);
+ *
+ * A whole valid frame at the start of the bytes, with nothing buffered, is not copied: its payload
+ * then points into the caller's bytes, so keep them unchanged until the frame has been handled
+ * (a ring's slots must not be released to the writer before). Any other frame's payload lies in
+ * the decoder's buffer, as with ctrlbus_decoder_next(). A NULL *data takes nothing and sets *len
+ * to 0; a NULL decoder, data or len returns CTRLBUS_RX_NONE. Not ISR-safe (as
+ * ctrlbus_decoder_feed()).
+ *
+ * Cost: such an in-place frame costs its header checks and a word-at-a-time XOR of its bytes, with
+ * no copy; a frame split between calls, garbage and failures take the feed's path (see
+ * ctrlbus_decoder_feed()). Measured over a Core<->base session in 64-byte chunks, see
+ * docs/performance.md. Without the bulk path (CTRLBUS_DECODER_FAST 0) it is the feed loop. */
+ctrlbus_rx_t ctrlbus_decoder_take(ctrlbus_decoder_t *decoder, const uint8_t **data, size_t *len,
+                                  uint32_t now_ms, ctrlbus_frame_t *frame);
+
 /* Takes one received byte (a UART interrupt's, or one from a ring) stamped with now_ms, and returns
  * the first result it completes: CTRLBUS_RX_NONE (the usual answer: the byte is inside a frame),
  * CTRLBUS_RX_FRAME with *frame filled in (frame may be NULL to skip it), or an event. It is the
@@ -311,14 +346,6 @@ ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte,
 #define CTRLBUS_DECODER_PUSH_INLINE 1
 #endif
 #endif
-/* Private, for the inline push (frame.c checks that they match its own): the decoder->state bits
- * that mean a result or a rescan waits, the bit "an event was raised since the last frame", the
- * bits that a buffer running empty clears, and complete_at for a long flag alone in the buffer
- * (its first length byte takes the inline path, the second is checked like a standard length). */
-#define CTRLBUS_DECODER_WAITING_ 0x97u
-#define CTRLBUS_DECODER_EVENT_SINCE_FRAME_ 0x08u
-#define CTRLBUS_DECODER_EMPTY_CLEARS_ 0x68u
-#define CTRLBUS_DECODER_LONG_HEADER_ARMED_ 3u
 
 static inline ctrlbus_rx_t ctrlbus_decoder_push(ctrlbus_decoder_t *decoder, uint8_t byte,
                                                 uint32_t now_ms, ctrlbus_frame_t *frame)
