@@ -46,9 +46,8 @@ static void clear_flags(ctrlbus_base_t *base, uint8_t flags)
 /* ---- receive ring --------------------------------------------------------------------------- */
 
 /* poll() hands the decoder a run of ring bytes shorter than this one byte at a time through
- * ctrlbus_decoder_push(), and a longer run in one ctrlbus_decoder_feed(): in instructions per byte
- * (bench/c/ctrlbus_parse.c, gcc -O2 and -Os) a feed of 16 bytes costs about what 16 pushes do, a
- * shorter feed more, a longer one less. */
+ * ctrlbus_decoder_push(), and a longer run through ctrlbus_decoder_take(), which checks a whole
+ * frame in place: short runs are mostly frame pieces, which take() would copy anyway. */
 #define PUSH_BELOW 16u
 
 size_t ctrlbus_base_feed(ctrlbus_base_t *base, const uint8_t *data, size_t len)
@@ -824,17 +823,22 @@ void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
                 used++; /* the byte that completed the result was taken too */
             }
         } else {
-            used = ctrlbus_decoder_feed(&base->decoder, bytes, run, now_ms);
+            /* More: take() up to the first result; a whole frame in the run is handed out in
+             * place, its payload still in the ring. */
+            const uint8_t *at = bytes;
+            size_t left = run;
+            rx = ctrlbus_decoder_take(&base->decoder, &at, &left, now_ms, &frame);
+            used = run - left;
         }
+        /* NONE from push or take means nothing waits. The result is answered before its bytes'
+         * slots are released, since a frame taken in place still lies in them. */
+        unsigned results = rx == CTRLBUS_RX_NONE ? 0u : drain(base, now_ms, rx, &frame);
         tail = (uint16_t)(tail + used);
         if (tail == config->rx_ring_size) {
             tail = 0;
         }
         CTRLBUS_RING_FENCE(); /* done with those bytes before feed may reuse their slots */
         base->rx_tail = tail;
-        /* After pushes that found nothing, nothing waits (push returns NONE only then). */
-        unsigned results =
-            run < PUSH_BELOW && rx == CTRLBUS_RX_NONE ? 0u : drain(base, now_ms, rx, &frame);
         if (dropped_after_reboot(base)) {
             return;
         }

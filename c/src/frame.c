@@ -610,10 +610,9 @@ static void move_to_front(ctrlbus_decoder_t *d)
 #if CTRLBUS_DECODER_FAST
 /* ---- the bulk path: the same rules, many bytes per step ------------------------------------- */
 
-/* Appends n bytes to the buffer at dst (unless dst is NULL: then it only reads them) and returns
- * checksum XOR all of them. A machine word at a time: each word goes through memcpy, which
- * compilers turn into plain loads and stores that are safe at any alignment; the tail is taken in
- * halves (4, 2, 1 bytes). Where it is inlined with a NULL dst, the stores vanish. */
+/* Appends n bytes to the buffer at dst and returns checksum XOR all of them. A machine word at a
+ * time: each word goes through memcpy, which compilers turn into plain loads and stores that are
+ * safe at any alignment; the tail is taken in halves (4, 2, 1 bytes). */
 IN_LINE static uint8_t copy_xor(uint8_t *dst, const uint8_t *src, size_t n, uint8_t checksum)
 {
     if (n >= 2u) {
@@ -621,34 +620,28 @@ IN_LINE static uint8_t copy_xor(uint8_t *dst, const uint8_t *src, size_t n, uint
         while (n >= sizeof acc) {
             size_t word;
             memcpy(&word, src, sizeof word);
-            if (dst != NULL) {
-                memcpy(dst, &word, sizeof word);
-                dst += sizeof word;
-            }
+            memcpy(dst, &word, sizeof word);
             acc ^= word;
             src += sizeof word;
+            dst += sizeof word;
             n -= sizeof word;
         }
         if (sizeof acc > 4u && n >= 4u) {
             uint32_t word;
             memcpy(&word, src, 4u);
-            if (dst != NULL) {
-                memcpy(dst, &word, 4u);
-                dst += 4;
-            }
+            memcpy(dst, &word, 4u);
             acc ^= (size_t)word; /* only compiled in with a 64-bit size_t */
             src += 4;
+            dst += 4;
             n -= 4u;
         }
         if (n >= 2u) {
             uint16_t word;
             memcpy(&word, src, 2u);
-            if (dst != NULL) {
-                memcpy(dst, &word, 2u);
-                dst += 2;
-            }
+            memcpy(dst, &word, 2u);
             acc ^= word;
             src += 2;
+            dst += 2;
             n -= 2u;
         }
         for (unsigned shift = (unsigned)sizeof acc * 4u; shift >= 8u; shift /= 2u) {
@@ -657,12 +650,29 @@ IN_LINE static uint8_t copy_xor(uint8_t *dst, const uint8_t *src, size_t n, uint
         checksum = (uint8_t)(checksum ^ (acc & 0xFFu));
     }
     if (n != 0) {
-        if (dst != NULL) {
-            *dst = *src;
-        }
+        *dst = *src;
         checksum ^= *src;
     }
     return checksum;
+}
+
+/* The XOR of bytes[0..n), n >= 4, read in place four bytes at a time (memcpy, as above): frames
+ * are short, so a 32-bit lane needs less set-up and folding than a machine word. */
+IN_LINE static uint8_t xor_in_place(const uint8_t *bytes, uint32_t n)
+{
+    uint32_t acc = 0;
+    const uint8_t *last_word = bytes + n - 4u;
+    for (; bytes <= last_word; bytes += 4) {
+        uint32_t word;
+        memcpy(&word, bytes, 4u);
+        acc ^= word;
+    }
+    for (const uint8_t *end = last_word + 4; bytes < end; bytes++) {
+        acc ^= *bytes;
+    }
+    acc ^= acc >> 16;
+    acc ^= acc >> 8;
+    return (uint8_t)acc;
 }
 
 /* take_bulk()'s word for "complete, but not a frame with a command: scan() settles it". */
@@ -1016,7 +1026,9 @@ ctrlbus_rx_t ctrlbus_decoder_take(ctrlbus_decoder_t *decoder, const uint8_t **da
      * feed and next() calls would settle it; anything else takes the general path. */
     const uint8_t *in = *data;
     size_t n = *len;
-    if (!(d->state & STATE_WAITING) && d->buffer != NULL && in != NULL) {
+    /* (A decoder never initialised has no buffer and max_frame 0: only the garbage step below
+     * could take it for a usable one, and checks.) */
+    if (!(d->state & STATE_WAITING) && in != NULL) {
         if (n == 0) {
             return CTRLBUS_RX_NONE;
         }
@@ -1024,6 +1036,9 @@ ctrlbus_rx_t ctrlbus_decoder_take(ctrlbus_decoder_t *decoder, const uint8_t **da
             /* Nothing buffered (start is 0 too). Rule 1 first: garbage up to the next flag is
              * discarded, with one event per gap. */
             if ((in[0] | 0x40u) != CTRLBUS_FLAG_LONG) {
+                if (d->buffer == NULL) {
+                    return take_general(d, data, len, now_ms, frame);
+                }
                 size_t skip = 1;
                 while (skip < n && (in[skip] | 0x40u) != CTRLBUS_FLAG_LONG) {
                     skip++;
@@ -1061,7 +1076,7 @@ ctrlbus_rx_t ctrlbus_decoder_take(ctrlbus_decoder_t *decoder, const uint8_t **da
                 return CTRLBUS_RX_NONE;
             }
             /* a whole frame: checked in place, handed out without a copy */
-            if (len_field == 0 || copy_xor(NULL, in, (size_t)size, 0) != 0) {
+            if (len_field == 0 || xor_in_place(in, size) != 0) {
                 return take_general(d, data, len, now_ms, frame);
             }
             *data = in + size;
