@@ -18,6 +18,8 @@ ctrlbus_rx_t bytepath_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *
 ctrlbus_rx_t bytepath_decoder_push(ctrlbus_decoder_t *decoder, uint8_t byte, uint32_t now_ms,
                                    ctrlbus_frame_t *frame);
 bool bytepath_decoder_busy(const ctrlbus_decoder_t *decoder);
+ctrlbus_rx_t bytepath_decoder_take(ctrlbus_decoder_t *decoder, const uint8_t **data, size_t *len,
+                                   uint32_t now_ms, ctrlbus_frame_t *frame);
 
 
 int32_t lean_decoder_init(ctrlbus_decoder_t *decoder, uint8_t *buffer, size_t buffer_size,

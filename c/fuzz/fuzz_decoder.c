@@ -27,7 +27,8 @@
  *   G  frame.c's decoder through ctrlbus_decoder_take(), the same cuts, each taken until it returns
  *      NONE: the same results and counters as A; every frame checked where it lies (in the
  *      decoder's buffer, or in place in the cut), the cut used up exactly.
- *   H  the lean twin through its take, as G. */
+ *   H  the lean twin through its take, as G.
+ *   I  the byte-path twin through its take (the general loop alone), as G. */
 #include <string.h>
 
 #include "frame_bytepath.h"
@@ -46,7 +47,7 @@ typedef struct {
     uint64_t frame_bytes; /* bytes of the frames it handed out */
 } run_t;
 
-static fuzz_log_t log_a, log_c, log_d, log_e, log_f, log_g, log_h;
+static fuzz_log_t log_a, log_c, log_d, log_e, log_f, log_g, log_h, log_i;
 static uint32_t max_frame;
 
 static uint64_t frame_size(const ctrlbus_frame_t *frame)
@@ -306,7 +307,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     const uint8_t *stream = in.data;
     size_t stream_len = in.left;
 
-    static run_t a, b, c, d, e, f, g, h;
+    static run_t a, b, c, d, e, f, g, h, i;
     run_init(&a, &log_a, timeout, ctrlbus_decoder_init);
     run_init(&b, NULL, timeout, bytepath_decoder_init); /* compared with A call by call */
     run_init(&c, &log_c, timeout, ctrlbus_decoder_init);
@@ -315,6 +316,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     run_init(&f, &log_f, timeout, lean_decoder_init);
     run_init(&g, &log_g, timeout, ctrlbus_decoder_init);
     run_init(&h, &log_h, timeout, lean_decoder_init);
+    run_init(&i, &log_i, timeout, bytepath_decoder_init);
 
     uint32_t now = fuzz_rng(&rng);
     for (size_t pos = 0; pos < stream_len;) {
@@ -333,6 +335,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             drain_with(&g, ctrlbus_decoder_next);
             lean_decoder_tick(&h.decoder, tick_at);
             drain_with(&h, lean_decoder_next);
+            bytepath_decoder_tick(&i.decoder, tick_at);
+            drain_with(&i, bytepath_decoder_next);
             now = tick_at;
         }
         now += time_step(&rng, timeout);
@@ -348,6 +352,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         feed_cut(&f, lean_decoder_feed, lean_decoder_next, stream + pos, cut, now);
         take_cut(&g, take_ours, stream + pos, cut, now);
         take_cut(&h, lean_decoder_take, stream + pos, cut, now);
+        take_cut(&i, bytepath_decoder_take, stream + pos, cut, now);
         pos += cut;
     }
     /* The line goes quiet: a partial frame left over times out. */
@@ -365,28 +370,32 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     drain_with(&g, ctrlbus_decoder_next);
     lean_decoder_tick(&h.decoder, end);
     drain_with(&h, lean_decoder_next);
+    bytepath_decoder_tick(&i.decoder, end);
+    drain_with(&i, bytepath_decoder_next);
 
     FUZZ_CHECK(a.taken == stream_len && c.taken == stream_len);
     FUZZ_CHECK(d.taken == stream_len && e.taken == stream_len && f.taken == stream_len);
-    FUZZ_CHECK(g.taken == stream_len && h.taken == stream_len);
+    FUZZ_CHECK(g.taken == stream_len && h.taken == stream_len && i.taken == stream_len);
     FUZZ_CHECK(fuzz_log_equal(&log_a, &log_c));
     FUZZ_CHECK(fuzz_log_equal(&log_a, &log_d));
     FUZZ_CHECK(fuzz_log_equal(&log_a, &log_e));
     FUZZ_CHECK(fuzz_log_equal(&log_a, &log_f));
     FUZZ_CHECK(fuzz_log_equal(&log_a, &log_g));
     FUZZ_CHECK(fuzz_log_equal(&log_a, &log_h));
+    FUZZ_CHECK(fuzz_log_equal(&log_a, &log_i));
     FUZZ_CHECK(memcmp(&a.stats, &c.stats, sizeof a.stats) == 0);
     FUZZ_CHECK(memcmp(&a.stats, &d.stats, sizeof a.stats) == 0);
     FUZZ_CHECK(memcmp(&a.stats, &e.stats, sizeof a.stats) == 0);
     FUZZ_CHECK(memcmp(&a.stats, &f.stats, sizeof a.stats) == 0);
     FUZZ_CHECK(memcmp(&a.stats, &g.stats, sizeof a.stats) == 0);
     FUZZ_CHECK(memcmp(&a.stats, &h.stats, sizeof a.stats) == 0);
+    FUZZ_CHECK(memcmp(&a.stats, &i.stats, sizeof a.stats) == 0);
     if (timeout != 0) {
         /* After the final timeout nothing is left: every byte is in a frame or discarded. */
         FUZZ_CHECK(!ctrlbus_decoder_busy(&a.decoder) && !ctrlbus_decoder_busy(&c.decoder));
         FUZZ_CHECK(!ctrlbus_decoder_busy(&d.decoder) && !bytepath_decoder_busy(&e.decoder));
         FUZZ_CHECK(!lean_decoder_busy(&f.decoder) && !ctrlbus_decoder_busy(&g.decoder));
-        FUZZ_CHECK(!lean_decoder_busy(&h.decoder));
+        FUZZ_CHECK(!lean_decoder_busy(&h.decoder) && !bytepath_decoder_busy(&i.decoder));
         FUZZ_CHECK(a.taken == a.frame_bytes + a.stats.bytes_discarded);
     }
     return 0;

@@ -1035,6 +1035,7 @@ ctrlbus_rx_t ctrlbus_decoder_take(ctrlbus_decoder_t *decoder, const uint8_t **da
         if (d->end == 0u) {
             /* Nothing buffered (start is 0 too). Rule 1 first: garbage up to the next flag is
              * discarded, with one event per gap. */
+#if DECODER_SHORTCUTS
             if ((in[0] | 0x40u) != CTRLBUS_FLAG_LONG) {
                 if (d->buffer == NULL) {
                     return take_general(d, data, len, now_ms, frame);
@@ -1058,6 +1059,11 @@ ctrlbus_rx_t ctrlbus_decoder_take(ctrlbus_decoder_t *decoder, const uint8_t **da
                 in += skip;
                 n -= skip;
             }
+#else
+            if ((in[0] | 0x40u) != CTRLBUS_FLAG_LONG) {
+                return take_general(d, data, len, now_ms, frame);
+            }
+#endif
             /* A candidate starts the input. */
             uint32_t header = header_size(in[0]);
             uint32_t len_field = n < header ? 0u : length_field(in, header);
@@ -1083,6 +1089,7 @@ ctrlbus_rx_t ctrlbus_decoder_take(ctrlbus_decoder_t *decoder, const uint8_t **da
             *len = n - size;
             return take_frame(d, in, header, len_field, now_ms, frame);
         }
+#if DECODER_SHORTCUTS
         /* More of the buffered candidate, when no timeout applies and it fits the buffer where
          * it lies. */
         uint32_t start = d->start;
@@ -1131,6 +1138,7 @@ ctrlbus_rx_t ctrlbus_decoder_take(ctrlbus_decoder_t *decoder, const uint8_t **da
                 }
             }
         }
+#endif
     }
 #endif
     return take_general(d, data, len, now_ms, frame);
