@@ -1086,7 +1086,7 @@ ctrlbus_rx_t ctrlbus_decoder_take(ctrlbus_decoder_t *decoder, const uint8_t **da
                 return take_general(d, data, len, now_ms, frame);
             }
             *data = in + size;
-            *len = n - size;
+            *len = n - (size_t)size;
             return take_frame(d, in, header, len_field, now_ms, frame);
         }
 #if DECODER_SHORTCUTS
@@ -1131,9 +1131,9 @@ ctrlbus_rx_t ctrlbus_decoder_take(ctrlbus_decoder_t *decoder, const uint8_t **da
                     *len = 0;
                     return CTRLBUS_RX_NONE;
                 }
-                if (copy_xor(d->buffer + d->end, in, need, d->checksum) == 0) {
+                if (copy_xor(d->buffer + d->end, in, (size_t)need, d->checksum) == 0) {
                     *data = in + need;
-                    *len = n - need;
+                    *len = n - (size_t)need;
                     return take_frame(d, cand, header, len_field, now_ms, frame);
                 }
             }
