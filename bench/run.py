@@ -186,7 +186,8 @@ CHUNK_GOALS = {("O2", "clean"): 0.10, ("O2", "noisy"): 0.15, ("Os", "clean"): 0.
 CTRLBUS_MODES = {
     "push": "byte by byte (ctrlbus_decoder_push)",
     "bytes": "byte by byte through feed (ctrlbus_decoder_feed of 1 byte, then next)",
-    "chunks": "in 64-byte chunks (ctrlbus_decoder_feed)",
+    "chunks": "in 64-byte chunks (ctrlbus_decoder_take)",
+    "feedchunks": "in 64-byte chunks through feed (ctrlbus_decoder_feed, then next)",
 }
 # The byte-by-byte row of the table: the byte API a UART interrupt uses.
 BYTE_MODE = "push"

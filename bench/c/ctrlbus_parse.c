@@ -9,7 +9,9 @@
  *   baseline  read the file and walk its bytes without decoding (the cost subtracted)
  *   bytes     ctrlbus_decoder_feed() one byte at a time, each followed by ctrlbus_decoder_next()
  *   push      ctrlbus_decoder_push() per byte, as a UART receive interrupt would: the byte API
- *   chunks    ctrlbus_decoder_feed() CHUNK bytes at a time, as a DMA or ring-buffer reader would
+ *   chunks    ctrlbus_decoder_take() on CHUNK bytes at a time until it returns CTRLBUS_RX_NONE, as a
+ *             DMA or ring-buffer reader would (whole frames are handed out in place)
+ *   feedchunks ctrlbus_decoder_feed() CHUNK bytes at a time (the feed-and-next loop)
  *
  * Each feed or push is followed by ctrlbus_decoder_next() until it returns CTRLBUS_RX_NONE (after a
  * push, only when the push returned a result), the loops the header documents. The decoder gets a 512-byte buffer (the reference base's receive buffer) and
@@ -124,7 +126,7 @@ static void decode(const unsigned char *data, size_t size, size_t chunk, tally_t
 int main(int argc, char **argv)
 {
     if (argc != 3) {
-        fprintf(stderr, "usage: %s baseline|bytes|push|chunks FILE\n", argv[0]);
+        fprintf(stderr, "usage: %s baseline|bytes|push|chunks|feedchunks FILE\n", argv[0]);
         return 2;
     }
     size_t size = 0;

@@ -14,8 +14,11 @@
  * caller buffer is the same code with ctrlbus_buffer_write() as the callback.
  *
  * Decoding is incremental: the caller pushes received bytes with ctrlbus_decoder_feed() and takes
- * the results (frames and events, in stream order) with ctrlbus_decoder_next(). The decoder
- * follows the contract in vectors/README.md exactly ("The stream decoder, precisely").
+ * the results (frames and events, in stream order) with ctrlbus_decoder_next(); or one byte at a
+ * time with ctrlbus_decoder_push() (a UART interrupt's byte), or a chunk with
+ * ctrlbus_decoder_take() (a DMA or ring buffer's bytes), which return the results themselves. The
+ * decoder follows the contract in vectors/README.md exactly ("The stream decoder, precisely"),
+ * whichever calls feed it.
  */
 #ifndef CTRLBUS_FRAME_H
 #define CTRLBUS_FRAME_H
@@ -259,9 +262,10 @@ void ctrlbus_decoder_reset(ctrlbus_decoder_t *decoder);
  * ctrlbus_decoder_push() rather than a feed of 1.
  * Measured with callgrind on x86-64 (bench/c/ctrlbus_parse.c, a Core<->base session, the caller's
  * loop included; docs/performance.md has the current figures): fed in 64-byte chunks about 9
- * instructions per byte at -O2 (level 1) and 12 at -Os (level 2), against about 68 without the
- * bulk path. On a Cortex-M0+ at -Os, level 2 adds about 0.55 KB of code and level 1 about 1.1 KB;
- * set CTRLBUS_DECODER_FAST=0 where flash matters more than cycles. */
+ * instructions per byte at -O2 (level 1) and 13 at -Os (level 2), against about 68 without the
+ * bulk path; ctrlbus_decoder_take() on the same chunks about 4.5 and 7. On a Cortex-M0+ at -Os,
+ * level 2 adds about 0.9 KB of code and level 1 about 1.9 KB; set CTRLBUS_DECODER_FAST=0 where flash
+ * matters more than cycles. */
 size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, size_t len,
                             uint32_t now_ms);
 
@@ -326,10 +330,12 @@ ctrlbus_rx_t ctrlbus_decoder_take(ctrlbus_decoder_t *decoder, const uint8_t **da
  * instructions where it is inlined, no call). Any other byte (a header byte, the last byte of a
  * frame, a new millisecond, garbage, a failure) calls ctrlbus_decoder_push_slow(), which settles
  * the frame's first and last bytes in a few dozen instructions and hands the rest to the general
- * path, whose cost is described at ctrlbus_decoder_feed(). Over a Core<->base session that averages
- * about 21 instructions per byte on x86-64, calls included (bench/c/ctrlbus_parse.c, gcc -O2 and
- * -Os; docs/performance.md). ctrlbus_decoder_push_slow() is the same function without the inline
- * path, with the same contract: call ctrlbus_decoder_push(). */
+ * path, whose cost is described at ctrlbus_decoder_feed(). With CTRLBUS_DECODER_PUSH_INLINE (the
+ * default unless optimising for size, below) a frame's header and last byte and quiet garbage take
+ * inline paths too, and a clean frame makes no call at all. Over a Core<->base session that
+ * averages about 18 instructions per byte at -O2 and 21 at -Os on x86-64, calls included
+ * (bench/c/ctrlbus_parse.c; docs/performance.md). ctrlbus_decoder_push_slow() is the same function
+ * without the inline paths, with the same contract: call ctrlbus_decoder_push(). */
 ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte, uint32_t now_ms,
                                        ctrlbus_frame_t *frame);
 
