@@ -15,7 +15,8 @@
 #define ctrlbus_decoder_push TWIN(decoder_push_inline)
 #define ctrlbus_decoder_push_slow TWIN(decoder_push_slow)
 #define ctrlbus_decoder_reset TWIN(decoder_reset)
-#define ctrlbus_decoder_take TWIN(decoder_take)
+#define ctrlbus_decoder_take TWIN(decoder_take_inline)
+#define ctrlbus_decoder_take_slow TWIN(decoder_take_slow)
 #define ctrlbus_decoder_tick TWIN(decoder_tick)
 #define ctrlbus_error_name TWIN(error_name)
 #define ctrlbus_frame_encode TWIN(frame_encode)
@@ -45,3 +46,11 @@ ctrlbus_rx_t TWIN(decoder_push)(ctrlbus_decoder_t *decoder, uint8_t byte, uint32
     return TWIN(decoder_push_inline)(decoder, byte, now_ms, frame);
 }
 
+/* frame.h's static inline take, likewise. */
+ctrlbus_rx_t TWIN(decoder_take)(ctrlbus_decoder_t *decoder, const uint8_t **data, size_t *len,
+                                uint32_t now_ms, ctrlbus_frame_t *frame);
+ctrlbus_rx_t TWIN(decoder_take)(ctrlbus_decoder_t *decoder, const uint8_t **data, size_t *len,
+                                uint32_t now_ms, ctrlbus_frame_t *frame)
+{
+    return TWIN(decoder_take_inline)(decoder, data, len, now_ms, frame);
+}

@@ -656,25 +656,6 @@ IN_LINE static uint8_t copy_xor(uint8_t *dst, const uint8_t *src, size_t n, uint
     return checksum;
 }
 
-/* The XOR of bytes[0..n), n >= 4, read in place four bytes at a time (memcpy, as above): frames
- * are short, so a 32-bit lane needs less set-up and folding than a machine word. */
-IN_LINE static uint8_t xor_in_place(const uint8_t *bytes, uint32_t n)
-{
-    uint32_t acc = 0;
-    const uint8_t *last_word = bytes + n - 4u;
-    for (; bytes <= last_word; bytes += 4) {
-        uint32_t word;
-        memcpy(&word, bytes, 4u);
-        acc ^= word;
-    }
-    for (const uint8_t *end = last_word + 4; bytes < end; bytes++) {
-        acc ^= *bytes;
-    }
-    acc ^= acc >> 16;
-    acc ^= acc >> 8;
-    return (uint8_t)acc;
-}
-
 /* take_bulk()'s word for "complete, but not a frame with a command: scan() settles it". */
 #define RX_SETTLE_BY_SCAN ((ctrlbus_rx_t)0xFF)
 
@@ -1014,8 +995,8 @@ IN_LINE static ctrlbus_rx_t take_frame(ctrlbus_decoder_t *d, const uint8_t *byte
 }
 #endif
 
-ctrlbus_rx_t ctrlbus_decoder_take(ctrlbus_decoder_t *decoder, const uint8_t **data, size_t *len,
-                                  uint32_t now_ms, ctrlbus_frame_t *frame)
+ctrlbus_rx_t ctrlbus_decoder_take_slow(ctrlbus_decoder_t *decoder, const uint8_t **data,
+                                       size_t *len, uint32_t now_ms, ctrlbus_frame_t *frame)
 {
     ctrlbus_decoder_t *d = decoder;
     if (d == NULL || data == NULL || len == NULL) {
@@ -1082,7 +1063,7 @@ ctrlbus_rx_t ctrlbus_decoder_take(ctrlbus_decoder_t *decoder, const uint8_t **da
                 return CTRLBUS_RX_NONE;
             }
             /* a whole frame: checked in place, handed out without a copy */
-            if (len_field == 0 || xor_in_place(in, size) != 0) {
+            if (len_field == 0 || ctrlbus_xor_in_place_(in, size) != 0) {
                 return take_general(d, data, len, now_ms, frame);
             }
             *data = in + size;

@@ -26,6 +26,7 @@
 #include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <string.h>
 
 #include "ctrlbus/ctrlbus.h"
 
@@ -269,7 +270,24 @@ void ctrlbus_decoder_reset(ctrlbus_decoder_t *decoder);
 size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, size_t len,
                             uint32_t now_ms);
 
-/* Private, for the inline push (frame.c checks that they match its own): the decoder->state bits
+
+/* Whether ctrlbus_decoder_push() and ctrlbus_decoder_take() settle their commonest cases inline,
+ * in the caller. push, when nothing waits and (but for a flag into an empty buffer) the
+ * millisecond is the byte before's: a frame's flag and length bytes, its last byte when its
+ * checksum matches (the frame is returned at once), and a garbage byte outside any frame once its
+ * gap's event has been raised; that is about 60 more instructions of code at each call site, in
+ * exchange for three calls of ctrlbus_decoder_push_slow() per frame. take, when nothing is
+ * buffered or waiting: a whole valid frame at the start of the input, and the input used up;
+ * about 50 instructions of code at each call site, for a call per frame. On by default except
+ * when optimising for size; define it to 0 or 1 to choose. */
+#ifndef CTRLBUS_DECODER_INLINE
+#if defined(__OPTIMIZE_SIZE__)
+#define CTRLBUS_DECODER_INLINE 0
+#else
+#define CTRLBUS_DECODER_INLINE 1
+#endif
+#endif
+/* Private, for the inline push and take (frame.c checks that they match its own): the decoder->state bits
  * that mean a result or a rescan waits, the bit "an event was raised since the last frame", the
  * bits that a buffer running empty clears, and complete_at for a long flag alone in the buffer
  * (its first length byte takes the inline path, the second is checked like a standard length). */
@@ -277,6 +295,32 @@ size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, siz
 #define CTRLBUS_DECODER_EVENT_SINCE_FRAME_ 0x08u
 #define CTRLBUS_DECODER_EMPTY_CLEARS_ 0x68u
 #define CTRLBUS_DECODER_LONG_HEADER_ARMED_ 3u
+
+/* Private: the XOR of bytes[0..n), read a machine word (size_t) at a time through memcpy (safe at
+ * any alignment; compilers make plain loads of it), then 4 bytes, then byte by byte. */
+static inline uint8_t ctrlbus_xor_in_place_(const uint8_t *bytes, uint32_t n)
+{
+    size_t acc = 0; /* the XOR of the bytes read, lane by lane */
+    const uint8_t *end = bytes + n;
+    for (; (size_t)(end - bytes) >= sizeof acc; bytes += sizeof acc) {
+        size_t word;
+        memcpy(&word, bytes, sizeof word);
+        acc ^= word;
+    }
+    if (sizeof acc > 4u && end - bytes >= 4) {
+        uint32_t word;
+        memcpy(&word, bytes, 4u);
+        acc ^= (size_t)word; /* only compiled in with a 64-bit size_t */
+        bytes += 4;
+    }
+    for (; bytes < end; bytes++) {
+        acc ^= *bytes;
+    }
+    for (unsigned shift = (unsigned)sizeof acc * 4u; shift >= 8u; shift /= 2u) {
+        acc ^= acc >> shift; /* fold: the low byte becomes the XOR of all the lanes */
+    }
+    return (uint8_t)acc;
+}
 
 /* Decodes the caller's bytes data[0..len) (passed as *data and *len) and returns the next result
  * in stream order, taking bytes as it needs them: *data and *len are advanced past the bytes taken.
@@ -300,9 +344,54 @@ size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, siz
  * Cost: such an in-place frame costs its header checks and a word-at-a-time XOR of its bytes, with
  * no copy; a frame split between calls, garbage and failures take the feed's path (see
  * ctrlbus_decoder_feed()). Measured over a Core<->base session in 64-byte chunks, see
- * docs/performance.md. Without the bulk path (CTRLBUS_DECODER_FAST 0) it is the feed loop. */
-ctrlbus_rx_t ctrlbus_decoder_take(ctrlbus_decoder_t *decoder, const uint8_t **data, size_t *len,
-                                  uint32_t now_ms, ctrlbus_frame_t *frame);
+ * docs/performance.md. Without the bulk path (CTRLBUS_DECODER_FAST 0) it is the feed loop, but for
+ * the inline case (CTRLBUS_DECODER_INLINE). ctrlbus_decoder_take_slow() is the same function
+ * without the inline path, with the same contract: call ctrlbus_decoder_take(). */
+ctrlbus_rx_t ctrlbus_decoder_take_slow(ctrlbus_decoder_t *decoder, const uint8_t **data,
+                                       size_t *len, uint32_t now_ms, ctrlbus_frame_t *frame);
+
+static inline ctrlbus_rx_t ctrlbus_decoder_take(ctrlbus_decoder_t *decoder, const uint8_t **data,
+                                                size_t *len, uint32_t now_ms,
+                                                ctrlbus_frame_t *frame)
+{
+#if CTRLBUS_DECODER_INLINE
+    /* Nothing buffered (end 0: start is 0 too) or waiting: the input used up needs nothing, and a
+     * whole frame with a command that fits at its start is checked and handed out in place. */
+    if (decoder != NULL && data != NULL && len != NULL && *data != NULL && decoder->end == 0u &&
+        (decoder->state & CTRLBUS_DECODER_WAITING_) == 0u) {
+        const uint8_t *in = *data;
+        size_t n = *len;
+        if (n >= CTRLBUS_STANDARD_OVERHEAD && (in[0] | 0x40u) == CTRLBUS_FLAG_LONG) {
+            bool is_long = in[0] == CTRLBUS_FLAG_LONG;
+            uint32_t header = is_long ? 3u : 2u;
+            uint32_t len_field = is_long ? (in[1] | (uint32_t)in[2] << 8) : in[1];
+            uint32_t size = header + len_field + 1u;
+            if (len_field != 0u && size <= n && size <= decoder->max_frame &&
+                ctrlbus_xor_in_place_(in, size) == 0u) {
+                if (frame != NULL) {
+                    frame->is_long = is_long;
+                    frame->cmd = in[header];
+                    frame->payload = in + header + 1u;
+                    frame->payload_len = (size_t)(len_field - 1u);
+                }
+                if (decoder->stats != NULL) {
+                    decoder->stats->frames += 1u;
+                }
+                decoder->complete_at = 0u;
+                decoder->last_byte_ms = now_ms;
+                decoder->state =
+                    (uint8_t)(decoder->state & (uint8_t)~CTRLBUS_DECODER_EMPTY_CLEARS_);
+                *data = in + size;
+                *len = n - (size_t)size;
+                return CTRLBUS_RX_FRAME;
+            }
+        } else if (n == 0u) {
+            return CTRLBUS_RX_NONE;
+        }
+    }
+#endif
+    return ctrlbus_decoder_take_slow(decoder, data, len, now_ms, frame);
+}
 
 /* Takes one received byte (a UART interrupt's, or one from a ring) stamped with now_ms, and returns
  * the first result it completes: CTRLBUS_RX_NONE (the usual answer: the byte is inside a frame),
@@ -330,7 +419,7 @@ ctrlbus_rx_t ctrlbus_decoder_take(ctrlbus_decoder_t *decoder, const uint8_t **da
  * instructions where it is inlined, no call). Any other byte (a header byte, the last byte of a
  * frame, a new millisecond, garbage, a failure) calls ctrlbus_decoder_push_slow(), which settles
  * the frame's first and last bytes in a few dozen instructions and hands the rest to the general
- * path, whose cost is described at ctrlbus_decoder_feed(). With CTRLBUS_DECODER_PUSH_INLINE (the
+ * path, whose cost is described at ctrlbus_decoder_feed(). With CTRLBUS_DECODER_INLINE (the
  * default unless optimising for size, below) a frame's header and last byte and quiet garbage take
  * inline paths too, and a clean frame makes no call at all. Over a Core<->base session that
  * averages about 18 instructions per byte at -O2 and 21 at -Os on x86-64, calls included
@@ -339,19 +428,6 @@ ctrlbus_rx_t ctrlbus_decoder_take(ctrlbus_decoder_t *decoder, const uint8_t **da
 ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte, uint32_t now_ms,
                                        ctrlbus_frame_t *frame);
 
-/* Whether ctrlbus_decoder_push() settles more cases inline, when nothing waits and (but for a
- * flag into an empty buffer) the millisecond is the byte before's: a frame's flag and length bytes,
- * its last byte when its checksum matches (the frame is returned at once), and a garbage byte
- * outside any frame once its gap's event has been raised. That is about 60 more instructions of
- * code at each call site, in exchange for three calls of ctrlbus_decoder_push_slow() per frame.
- * On by default except when optimising for size; define it to 0 or 1 to choose. */
-#ifndef CTRLBUS_DECODER_PUSH_INLINE
-#if defined(__OPTIMIZE_SIZE__)
-#define CTRLBUS_DECODER_PUSH_INLINE 0
-#else
-#define CTRLBUS_DECODER_PUSH_INLINE 1
-#endif
-#endif
 
 static inline ctrlbus_rx_t ctrlbus_decoder_push(ctrlbus_decoder_t *decoder, uint8_t byte,
                                                 uint32_t now_ms, ctrlbus_frame_t *frame)
@@ -369,7 +445,7 @@ static inline ctrlbus_rx_t ctrlbus_decoder_push(ctrlbus_decoder_t *decoder, uint
         decoder->checksum = (uint8_t)(decoder->checksum ^ byte);
         return CTRLBUS_RX_NONE;
     }
-#if CTRLBUS_DECODER_PUSH_INLINE
+#if CTRLBUS_DECODER_INLINE
     if ((decoder->state & CTRLBUS_DECODER_WAITING_) == 0u && decoder->buffer != NULL) {
         uint8_t *buffer = decoder->buffer;
         if (end == 0u) {
