@@ -264,7 +264,7 @@ void ctrlbus_decoder_reset(ctrlbus_decoder_t *decoder);
  * Measured with callgrind on x86-64 (bench/c/ctrlbus_parse.c, a Core<->base session, the caller's
  * loop included; docs/performance.md has the current figures): fed in 64-byte chunks about 9
  * instructions per byte at -O2 (level 1) and 13 at -Os (level 2), against about 68 without the
- * bulk path; ctrlbus_decoder_take() on the same chunks about 4.5 and 7. On a Cortex-M0+ at -Os,
+ * bulk path; ctrlbus_decoder_take() on the same chunks about 3.2 (inlined) and 7. On a Cortex-M0+ at -Os,
  * level 2 adds about 0.9 KB of code and level 1 about 1.9 KB; set CTRLBUS_DECODER_FAST=0 where flash
  * matters more than cycles. */
 size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, size_t len,
@@ -342,9 +342,11 @@ static inline uint8_t ctrlbus_xor_in_place_(const uint8_t *bytes, uint32_t n)
  * ctrlbus_decoder_feed()).
  *
  * Cost: such an in-place frame costs its header checks and a word-at-a-time XOR of its bytes, with
- * no copy; a frame split between calls, garbage and failures take the feed's path (see
- * ctrlbus_decoder_feed()). Measured over a Core<->base session in 64-byte chunks, see
- * docs/performance.md. Without the bulk path (CTRLBUS_DECODER_FAST 0) it is the feed loop, but for
+ * no copy, inline in the caller (CTRLBUS_DECODER_INLINE). The end of a frame split between calls,
+ * the start of one and a garbage run are settled by ctrlbus_decoder_take_slow() in one step each
+ * (a copy into the buffer); failures and the rescan after them take the feed's path (see
+ * ctrlbus_decoder_feed()). Over a Core<->base session in 64-byte chunks about 3.2 instructions
+ * per byte at -O2 and 7 at -Os on x86-64, the caller's loop included (docs/performance.md). Without the bulk path (CTRLBUS_DECODER_FAST 0) it is the feed loop, but for
  * the inline case (CTRLBUS_DECODER_INLINE). ctrlbus_decoder_take_slow() is the same function
  * without the inline path, with the same contract: call ctrlbus_decoder_take(). */
 ctrlbus_rx_t ctrlbus_decoder_take_slow(ctrlbus_decoder_t *decoder, const uint8_t **data,
