@@ -117,7 +117,8 @@ def parse_size_report(text: str) -> SizeReport:
 # The base stack linked again, with a map
 
 
-_DECLARED = re.compile(r"^[a-z_][a-z0-9_ *]*[ *](ctrlbus_[a-z0-9_]+)\(", re.MULTILINE)
+# (not static inline functions: the header defines those itself)
+_DECLARED = re.compile(r"^(?!static )[a-z_][a-z0-9_ *]*[ *](ctrlbus_[a-z0-9_]+)\(", re.MULTILINE)
 
 
 def declared_functions(header: Path) -> set[str]:

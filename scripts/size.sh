@@ -42,7 +42,9 @@ trap 'rm -rf "$work"' EXIT
 
 # The functions a public header declares: `name(` at the start of a declaration.
 declared_functions() {
-  grep -hoE '^[a-z_][a-z0-9_ *]*[ *](ctrlbus_[a-z0-9_]+)\(' "$1" | grep -oE 'ctrlbus_[a-z0-9_]+\($' | tr -d '('
+  # (static inline functions are defined in the header itself: no object implements them)
+  grep -hoE '^[a-z_][a-z0-9_ *]*[ *](ctrlbus_[a-z0-9_]+)\(' "$1" | grep -v '^static ' |
+    grep -oE 'ctrlbus_[a-z0-9_]+\($' | tr -d '('
 }
 
 # .text .data .bss of a linked or object file, as three numbers.
