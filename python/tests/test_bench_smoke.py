@@ -93,7 +93,7 @@ def test_c_parser_cost_figures(smoke: tuple[Path, dict[str, dict[str, Any]]]) ->
     if result["status"] == "measured":
         for variant in ("clean", "noisy"):
             for level in levels:
-                for mode in ("push", "bytes", "chunks"):
+                for mode in ("push", "bytes", "chunks", "feedchunks"):
                     ours = f[f"{variant}_{level}_ctrlbus_{mode}_ipb"]
                     assert ours > 0
                     expected = ours / f[f"{variant}_{level}_mavlink_parse_char_ipb"]
@@ -101,7 +101,7 @@ def test_c_parser_cost_figures(smoke: tuple[Path, dict[str, dict[str, Any]]]) ->
                         expected, rel=1e-2
                     )
         for level in levels:
-            for mode in ("push", "bytes", "chunks"):
+            for mode in ("push", "bytes", "chunks", "feedchunks"):
                 assert reports["clean"][f"{level}_ctrlbus_{mode}"]["frames"] == f["ctrlbus_frames"]
 
 
