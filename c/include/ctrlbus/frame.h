@@ -334,10 +334,11 @@ static inline uint8_t ctrlbus_xor_in_place_(const uint8_t *bytes, uint32_t n)
  *                           CTRLBUS_RX_NONE;)
  *         handle(rx, &frame);
  *
- * A whole valid frame at the start of the bytes, with nothing buffered, is not copied: its payload
- * then points into the caller's bytes, so keep them unchanged until the frame has been handled
- * (a ring's slots must not be released to the writer before). Any other frame's payload lies in
- * the decoder's buffer, as with ctrlbus_decoder_next(). A NULL *data takes nothing and sets *len
+ * A whole valid frame at the start of the bytes, with nothing buffered or waiting, is not copied
+ * (unless the build has neither the bulk path nor the inline paths): its payload then points into
+ * the caller's bytes, so keep them unchanged until the frame has been handled (a ring's slots must
+ * not be released to the writer before). Any other frame's payload lies in the decoder's buffer,
+ * as with ctrlbus_decoder_next(). A NULL *data takes nothing and sets *len
  * to 0; a NULL decoder, data or len returns CTRLBUS_RX_NONE. Not ISR-safe (as
  * ctrlbus_decoder_feed()).
  *
