@@ -10,10 +10,22 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass
 
+from ctrlbus.messages import (
+    ConnectBase,
+    Event,
+    ExternalCommand,
+    HealthGetError,
+    RequestMessage,
+    SendEvent,
+    Sync,
+)
+
 __all__ = [
     "MAX_EVENTS",
     "CoreEvent",
     "EventLog",
+    "command_name",
+    "describe_request",
 ]
 
 MAX_EVENTS = 200
@@ -47,3 +59,31 @@ class EventLog:
 
     def __len__(self) -> int:
         return len(self._events)
+
+
+def command_name(code: int) -> str:
+    """How the event log names an external command the base offers."""
+    try:
+        return ExternalCommand(code).name
+    except ValueError:
+        return "unknown command"
+
+
+def _event_name(code: int) -> str:
+    try:
+        return Event(code).name
+    except ValueError:
+        return f"0x{code:02X}"
+
+
+def describe_request(message: RequestMessage) -> str:
+    """How the event log names a request."""
+    if isinstance(message, ConnectBase):
+        return f"CONNECT_BASE v{message.protocol_version}"
+    if isinstance(message, SendEvent):
+        return f"SEND_EVENT {_event_name(message.event)}"
+    if isinstance(message, Sync):
+        return f"SYNC flush ({len(message.filler) + 5} bytes)"
+    if isinstance(message, HealthGetError):
+        return f"HEALTH_GET_ERROR #{message.index}"
+    return message.NAME

@@ -37,7 +37,7 @@ from ctrlbus.constants import WATCHDOG_TRIPPED_CODE as WATCHDOG_HEALTH_CODE
 from ctrlbus.core.actions import Action, DriveDistance, TurnAngle
 from ctrlbus.core.config import CoreConfig
 from ctrlbus.core.docking import GoHome
-from ctrlbus.core.events import CoreEvent, EventLog
+from ctrlbus.core.events import CoreEvent, EventLog, command_name, describe_request
 from ctrlbus.core.geometry import (
     SOURCE_CONF_ADV,
     BaseGeometry,
@@ -169,37 +169,10 @@ _DOCKING_ONLY = frozenset({"charger"})
 _TRACKED_PURPOSES = frozenset({_Purpose.CONFIG_ADV, _Purpose.CONFIG, _Purpose.SYSTEM_UP, _Purpose.POLL})
 
 
-def _command_name(code: int) -> str:
-    try:
-        return ExternalCommand(code).name
-    except ValueError:
-        return "unknown command"
-
-
-def _event_name(code: int) -> str:
-    try:
-        return Event(code).name
-    except ValueError:
-        return f"0x{code:02X}"
-
-
 def _check_finite(**values: float) -> None:
     for name, value in values.items():
         if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
             raise UsageError(f"{name} must be a finite number, got {value!r}")
-
-
-def describe_request(message: RequestMessage) -> str:
-    """How the event log names a request."""
-    if isinstance(message, ConnectBase):
-        return f"CONNECT_BASE v{message.protocol_version}"
-    if isinstance(message, SendEvent):
-        return f"SEND_EVENT {_event_name(message.event)}"
-    if isinstance(message, Sync):
-        return f"SYNC flush ({len(message.filler) + 5} bytes)"
-    if isinstance(message, HealthGetError):
-        return f"HEALTH_GET_ERROR #{message.index}"
-    return message.NAME
 
 
 class CoreSession:
@@ -1010,7 +983,7 @@ class CoreSession:
         elif isinstance(answer, PollBaseCmdAnswer):
             if answer.command is not None:
                 self._offered_command = answer.command
-                self._log("base", f"base offers {_command_name(answer.command)} (0x{answer.command:02X})")
+                self._log("base", f"base offers {command_name(answer.command)} (0x{answer.command:02X})")
                 self._followups.appendleft(PollBaseAnsCmd())
         elif isinstance(answer, HealthGetHealthAnswer):
             self._on_health(answer)
@@ -1060,7 +1033,7 @@ class CoreSession:
     def _act_on(self, code: int) -> None:
         """What the Core does with an external command it has acknowledged (§11.5)."""
         config = self.config
-        name = _command_name(code)
+        name = command_name(code)
         if code == ExternalCommand.CANCEL_ACTION:
             self._cancel_action("cancelled by CANCEL_ACTION")
             self._vx = self._omega = 0.0
