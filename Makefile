@@ -96,8 +96,10 @@ demo:
 	esac
 	@$(PY) -m ctrlbus demo $(DEMO_ARGS)
 
+# The library per target and configuration (scripts/size.sh), then every firmware image's flash and RAM.
 size: setup
 	@scripts/size.sh
+	@$(MAKE) --no-print-directory -s -C c/ports O=$(CURDIR)/$(BUILD)/ports sizes
 
 # Benchmarks build what they measure themselves, as Release (-O2 and -Os): not the Debug c-build.
 bench: setup

@@ -273,16 +273,20 @@ def run_core(link: Link, seconds: float, warmup_s: float) -> dict[str, Any]:
     runner.start()
     try:
         deadline = time.monotonic() + START_LIMIT_S
+
+        def link_stats() -> dict[str, Any]:
+            with runner.lock:  # the session is lock-free: its runner's lock guards it
+                return session.link_stats()
+
         while not session.connected:
             if time.monotonic() > deadline or runner.failure or not runner.running:
-                raise BenchError(
-                    f"the Core emulator did not connect to {link.name}: {session.link_stats()['reason']}"
-                )
+                reason = link_stats()["reason"]
+                raise BenchError(f"the Core emulator did not connect to {link.name}: {reason}")
             time.sleep(0.01)
         time.sleep(warmup_s)
-        before, started = session.link_stats(), time.perf_counter()
+        before, started = link_stats(), time.perf_counter()
         time.sleep(seconds)
-        after, ended = session.link_stats(), time.perf_counter()
+        after, ended = link_stats(), time.perf_counter()
     finally:
         runner.stop()
     if runner.failure:

@@ -598,9 +598,10 @@ def run_realtime(
         runner.start()
         step = 0
         while len(core.completions) < exchanges and time.monotonic() - started < limit_s:
-            if core.connected and time.monotonic() - started >= step * DRIVE_STEP_S:
-                core.set_velocity(*DRIVE_PATTERN[step % len(DRIVE_PATTERN)])
-                step += 1
+            with runner.lock:  # the session is lock-free: its runner's lock guards it
+                if core.connected and time.monotonic() - started >= step * DRIVE_STEP_S:
+                    core.set_velocity(*DRIVE_PATTERN[step % len(DRIVE_PATTERN)])
+                    step += 1
             time.sleep(0.05)
         elapsed = time.monotonic() - started
     finally:

@@ -39,7 +39,8 @@ from ctrlbus.sim.base import SimulatedBase
 from ctrlbus.sim.world import World
 from ctrlbus.vtime import VirtualBus
 from ctrlbus.web.schema import check_snapshot
-from ctrlbus.web.source import DashboardSource
+from ctrlbus.web.snapshot import dashboard_snapshot
+from ctrlbus.web.source import CoreSource, DashboardSource
 
 CONNECT_LIMIT_S = 5.0
 
@@ -77,7 +78,7 @@ def test_connect_then_fallback_from_conf_adv_to_conf_then_system_up() -> None:
     assert base.names()[:4] == ["CONNECT_BASE", "GET_BASE_CONF_ADV", "GET_BASE_CONF", "SEND_EVENT:0x63"]
     texts = [event.text for event in core.events()]
     assert "ERROR 0x8000 to GET_BASE_CONF_ADV" in texts
-    snap = core.snapshot()
+    snap = dashboard_snapshot(core)
     assert snap["base"]["config_source"] == "GET_BASE_CONF"
     assert snap["base"]["model"] == "fake base"
     assert snap["base"]["firmware_version"] == "1.20"
@@ -94,7 +95,7 @@ def test_binary_configuration_is_preferred_when_served() -> None:
     bus.run_for(0.5)
     # The blob is used; GET_BASE_CONF is asked besides it only to show its view (§11.2).
     assert base.names()[:4] == ["CONNECT_BASE", "GET_BASE_CONF_ADV", "GET_BASE_CONF", "SEND_EVENT:0x63"]
-    snap = core.snapshot()
+    snap = dashboard_snapshot(core)
     assert set(snap["base"]["views"]) == {"GET_BASE_CONF", "GET_BASE_CONF_ADV"}
     tree: Any = binconf.decode(binconf.example_blob())
     geometry = geometry_from_tree(tree)
@@ -119,7 +120,7 @@ def test_binary_configuration_is_preferred_when_served() -> None:
 def test_unusable_binary_configuration_falls_back_to_conf(blob: bytes) -> None:
     core, base, _ = start(FakeBase(blob=blob))
     assert base.names()[:4] == ["CONNECT_BASE", "GET_BASE_CONF_ADV", "GET_BASE_CONF", "SEND_EVENT:0x63"]
-    assert core.snapshot()["base"]["config_source"] == "GET_BASE_CONF"
+    assert dashboard_snapshot(core)["base"]["config_source"] == "GET_BASE_CONF"
     assert any("GET_BASE_CONF" in event.text and "asking" in event.text for event in core.events())
 
 
@@ -589,7 +590,7 @@ def test_subscribers_hear_changes_and_a_failing_one_does_no_harm() -> None:
 
 def test_snapshot_follows_the_dashboard_schema_in_every_state() -> None:
     core = CoreSession(port="fake")
-    assert check_snapshot(core.snapshot()) == []  # nothing known yet
+    assert check_snapshot(dashboard_snapshot(core)) == []  # nothing known yet
     base = FakeBase(
         blob=binconf.example_blob(),
         health=[(0x01020100, "battery low")],
@@ -601,7 +602,7 @@ def test_snapshot_follows_the_dashboard_schema_in_every_state() -> None:
     assert bus.run_until(lambda: core.connected, CONNECT_LIMIT_S)
     core.set_velocity(0.2, 0.3)
     bus.run_for(2.0)
-    snap = core.snapshot()
+    snap = dashboard_snapshot(core)
     assert check_snapshot(snap) == []
     assert snap["charger"] is None
     assert snap["health"]["errors"] == [{"code": 0x01020100, "message": "battery low"}]
@@ -613,14 +614,14 @@ def test_snapshot_follows_the_dashboard_schema_in_every_state() -> None:
     bus.run_for(1.1)
     core.go_home()
     bus.run_for(0.5)
-    snap = core.snapshot()
+    snap = dashboard_snapshot(core)
     assert check_snapshot(snap) == []
     assert snap["command"]["mode"] == "go_home" and snap["command"]["activity"]
     assert snap["charger"] == {"beacon_count": 3, "probe_count": 3, "probes": [1, 3, 4]}
     core.emergency_stop()
     base.silent = True
     bus.run_for(2.0)
-    snap = core.snapshot()
+    snap = dashboard_snapshot(core)
     assert check_snapshot(snap) == []
     assert snap["link"]["connection"]["state"] == "disconnected" and snap["command"]["mode"] == "estop"
 
@@ -635,15 +636,21 @@ def test_event_log_and_trail_are_bounded() -> None:
 
 
 def test_snapshot_and_controls_from_another_thread() -> None:
+    """The session holds no lock: the loop that drives it and the dashboard share one."""
     core = CoreSession(port="fake")
-    bus = VirtualBus(core, FakeBase())
+    lock = threading.RLock()
+    bus = VirtualBus(core, FakeBase(), lock=lock)
+    source = CoreSource(core, lock)
     problems: list[str] = []
     done = threading.Event()
 
     def dashboard() -> None:
-        while not done.is_set():
-            problems.extend(check_snapshot(core.snapshot()))
-            core.set_velocity(0.1, 0.2)
+        try:
+            while not done.is_set():
+                problems.extend(check_snapshot(source.snapshot()))
+                source.set_velocity(0.1, 0.2)
+        except Exception as exc:  # a race would show here, not only as a thread warning
+            problems.append(repr(exc))
 
     thread = threading.Thread(target=dashboard)
     thread.start()
@@ -693,7 +700,7 @@ def test_sixty_seconds_against_the_simulated_base_pose_matches_its_odometry() ->
     assert math.hypot(pose.x_mm, pose.y_mm) > 300.0  # it really went somewhere
     truth = relative_pose(start_odometry, world.true_pose)
     assert math.hypot(truth.dx_mm - pose.x_mm, truth.dy_mm - pose.y_mm) > 1.0  # slip: odometry drifts
-    assert check_snapshot(core.snapshot()) == []
+    assert check_snapshot(dashboard_snapshot(core)) == []
 
 
 @pytest.mark.parametrize("start_pose", [Pose(1000.0, 2000.0, 0.0), Pose(2000.0, 1900.0, 45.0)])
@@ -705,7 +712,7 @@ def test_go_home_docks_the_simulated_robot(start_pose: Pose) -> None:
     assert bus.run_until(lambda: core.command.mode != "go_home", 90.0), core.command.activity
     assert core.last_outcome == "go home: docked"
     assert world.docked and on_dock(world.power_status)
-    assert core.snapshot()["battery"]["on_dock"]
+    assert dashboard_snapshot(core)["battery"]["on_dock"]
     assert core.link_stats()["timeouts"] == 0
 
 
@@ -747,7 +754,8 @@ def test_runner_drives_a_base_in_real_time_and_stops_cleanly() -> None:
         base_runner.start()
         runner.start()
         assert wait_for(lambda: session.connected), session.events()
-        session.set_velocity(0.2, 0.0)
+        with runner.lock:
+            session.set_velocity(0.2, 0.0)
         assert wait_for(lambda: session.pose.x_mm > 20.0)
     finally:
         runner.stop()
@@ -806,8 +814,8 @@ def test_request_frames_decode_as_the_requests_of_the_schedule() -> None:
     assert flush == encode(0x00, bytes(507), long=True) and len(flush) == 512
 
 
-def test_the_core_satisfies_the_dashboard_source_without_importing_the_web_layer() -> None:
-    assert isinstance(CoreSession(), DashboardSource)
+def test_the_core_is_a_dashboard_source_under_its_runner_lock_and_never_imports_the_web_layer() -> None:
+    assert isinstance(CoreSource(CoreSession(), threading.RLock()), DashboardSource)
     code = (
         "import sys, ctrlbus.core, ctrlbus.vtime; "
         "print(sorted(name for name in sys.modules if name.startswith('ctrlbus.web')))"

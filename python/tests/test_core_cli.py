@@ -28,8 +28,8 @@ from core_fakes import FakeBase
 from ctrlbus import binconf
 from ctrlbus.cli import main
 from ctrlbus.cli.core_cmd import StatusOutput
+from ctrlbus.cli.core_status import SCREEN_HOME_CLEAR, json_status, render_screen, status_line
 from ctrlbus.core import CoreSession
-from ctrlbus.core.status import SCREEN_HOME_CLEAR, json_status, render_screen, status_line
 from ctrlbus.link import PtyLink
 from ctrlbus.vtime import VirtualBus
 

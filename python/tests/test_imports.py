@@ -145,3 +145,36 @@ def test_no_layer_imports_a_layer_above_it() -> None:
         if target != PACKAGE and layer_of(target) > layer_of(module)  # `from ctrlbus import __version__`
     ]
     assert upwards == []
+
+
+# Inside the Core (issue 15): the sans-IO session, its telemetry model and its event log hold no
+# lock and start no thread; the runner that owns the thread holds the lock.
+SANS_IO_CORE = ("ctrlbus.core.session", "ctrlbus.core.telemetry", "ctrlbus.core.events", "ctrlbus.core.stats")
+
+
+def stdlib_imports_of(path: Path) -> set[str]:
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), filename=str(path))):
+        if isinstance(node, ast.Import):
+            found.update(alias.name.split(".")[0] for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+            found.add(node.module.split(".")[0])
+    return found
+
+
+def test_the_sans_io_core_takes_no_lock_and_the_runner_does() -> None:
+    modules = all_modules()
+    for name in SANS_IO_CORE:
+        assert "threading" not in stdlib_imports_of(modules[name]), f"{name} imports threading"
+    assert "threading" in stdlib_imports_of(modules["ctrlbus.core.runner"])
+
+
+def test_the_dashboard_json_is_made_in_the_web_layer_only() -> None:
+    graph = import_graph()
+    assert "ctrlbus.core.session" in graph["ctrlbus.web.snapshot"]
+    assert not any(
+        target.startswith("ctrlbus.web")
+        for name in graph
+        if name.startswith("ctrlbus.core")
+        for target in graph[name]
+    )

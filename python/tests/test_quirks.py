@@ -24,6 +24,7 @@ from ctrlbus.sim.base import SimulatedBase
 from ctrlbus.sim.description import default_base_description
 from ctrlbus.sim.world import World
 from ctrlbus.vtime import VirtualBus
+from ctrlbus.web.snapshot import dashboard_snapshot
 
 STATUS = bytes.fromhex("10 02 F8 30 DA")
 STATUS_ANSWER_CMD_OK = 0x02
@@ -191,7 +192,7 @@ def test_robot_size_is_a_diameter_and_both_views_are_shown() -> None:
     core = CoreSession(port="vtime")
     bus = VirtualBus(core, stack)
     assert bus.run_until(lambda: core.connected, 5.0)
-    base = core.snapshot()["base"]
+    base = dashboard_snapshot(core)["base"]
     assert base["config_source"] == "GET_BASE_CONF_ADV"
     assert base["radius_mm"] == pytest.approx(description.radius_mm, abs=0.01)
     views = base["views"]

@@ -15,6 +15,7 @@ from ctrlbus.errors import UsageError
 from ctrlbus.sim.base import SimulatedBase
 from ctrlbus.sim.world import World
 from ctrlbus.vtime import DEFAULT_BYTE_TIME_S, SerialLine, VirtualBus
+from ctrlbus.web.snapshot import dashboard_snapshot
 
 
 def test_serial_line_delivers_each_write_when_its_last_byte_has_arrived() -> None:
@@ -86,7 +87,7 @@ def test_runs_are_deterministic() -> None:
     second_core, second_world, second_bus = run_simulated(5.0)
     assert first_core.pose == second_core.pose
     assert first_world.true_pose == second_world.true_pose
-    assert first_core.snapshot() == second_core.snapshot()
+    assert dashboard_snapshot(first_core) == dashboard_snapshot(second_core)
     assert first_bus.to_base_line.bytes_sent == second_bus.to_base_line.bytes_sent
     assert first_bus.to_core_line.bytes_sent == second_bus.to_core_line.bytes_sent
 

@@ -239,6 +239,7 @@ def _start_core(base: RunningBase, cleanup: contextlib.ExitStack) -> DashboardSo
     """The Core emulator on the base's pty, in real time; the source the dashboard shows."""
     from ctrlbus.core import CoreRunner, CoreSession
     from ctrlbus.ports import open_link
+    from ctrlbus.web.source import CoreSource
 
     session = CoreSession(port=base.port)
     runner = CoreRunner(session, open_link(base.port), reopen=lambda: open_link(base.port))
@@ -252,9 +253,10 @@ def _start_core(base: RunningBase, cleanup: contextlib.ExitStack) -> DashboardSo
         return base_failure()
 
     base.failure = failure
+    source = CoreSource.for_runner(runner)  # the dashboard reads the session under the runner's lock
     if base.simulator is not None:
-        return SimulatorAttached(session, base.simulator)
-    return session
+        return SimulatorAttached(source, base.simulator)
+    return source
 
 
 def _require_file(path: Path, what: str, how: str) -> None:

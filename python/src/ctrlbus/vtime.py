@@ -18,14 +18,19 @@ The model:
 - `to_base` and `to_core` (optional) see every write before it goes onto its line and return the
   bytes to send instead: the place for a fault injector. They are called as `filter(data, now)`,
   and also with `b""` at every base tick so that a filter can release bytes it held back.
+
+The session holds no lock. A test that reads or commands it from another thread while the loop
+runs gives the loop a `lock` (taken around each call into the session) and takes it too.
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections import deque
 from collections.abc import Callable
-from typing import Protocol
+from contextlib import AbstractContextManager
+from typing import Any, Protocol
 
 from ctrlbus.core.session import CoreSession
 from ctrlbus.errors import UsageError
@@ -109,6 +114,7 @@ class VirtualBus:
         to_base: ByteFilter | None = None,
         to_core: ByteFilter | None = None,
         start_s: float = 0.0,
+        lock: AbstractContextManager[Any] | None = None,
     ) -> None:
         for name, value in (("byte_time_s", byte_time_s), ("base_latency_s", base_latency_s)):
             if not (math.isfinite(value) and value >= 0):
@@ -119,6 +125,7 @@ class VirtualBus:
             raise UsageError(f"chunk_bytes must be >= 0, got {chunk_bytes}")
         self.core = core
         self.base = base
+        self.lock = lock if lock is not None else contextlib.nullcontext()
         self.base_latency_s = base_latency_s
         self.tick_period_s = tick_period_s
         self.to_base_line = SerialLine(byte_time_s, chunk_bytes)
@@ -161,7 +168,8 @@ class VirtualBus:
     def _run_to(self, end: float) -> None:
         while True:
             self._poll_core()
-            wake = self.core.next_poll_time()
+            with self.lock:
+                wake = self.core.next_poll_time()
             if wake is not None and wake <= self.now:
                 wake = self.now + _EPSILON_S
             candidates = [self._next_tick()]
@@ -176,7 +184,8 @@ class VirtualBus:
             self._deliver()
 
     def _poll_core(self) -> None:
-        frame = self.core.poll(self.now)
+        with self.lock:
+            frame = self.core.poll(self.now)
         if frame is not None:
             self.core_requests += 1
             self._send_to_base(frame, self.now)
@@ -188,7 +197,8 @@ class VirtualBus:
             self._send_to_core(self.base.receive(data, now), now + self.base_latency_s)
         data = self.to_core_line.take(now)
         if data:
-            self.core.receive(data, now)
+            with self.lock:
+                self.core.receive(data, now)
         if now >= self._next_tick():
             self._ticks += 1
             self.base_ticks += 1

@@ -22,6 +22,7 @@ import os
 import sys
 import threading
 import time
+from contextlib import AbstractContextManager
 from typing import TYPE_CHECKING, Any, TextIO
 
 from ctrlbus.cli.common import (
@@ -31,9 +32,9 @@ from ctrlbus.cli.common import (
     positive_number,
     stop_on_signals,
 )
+from ctrlbus.cli.core_status import SCREEN_HOME_CLEAR, json_status, render_screen, status_line
 from ctrlbus.constants import Profile
 from ctrlbus.core import CoreConfig, CoreRunner, CoreSession, PollRates, byte_time_for_baud
-from ctrlbus.core.status import SCREEN_HOME_CLEAR, json_status, render_screen, status_line
 from ctrlbus.errors import ProtocolTimeout, UsageError
 from ctrlbus.link import Link
 from ctrlbus.ports import open_link
@@ -156,15 +157,16 @@ def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
     runner = CoreRunner(session, link, reopen=reopen)
     stop = stop if stop is not None else threading.Event()
     server: DashboardServer | None = None
-    output = StatusOutput(sys.stdout, json_lines=args.json)
+    output = StatusOutput(sys.stdout, json_lines=args.json, lock=runner.lock)
     started = time.monotonic()
     try:
         with stop_on_signals(stop):
             runner.start()
             if dashboard_options is not None:
                 from ctrlbus.web import start_dashboard
+                from ctrlbus.web.source import CoreSource
 
-                server = start_dashboard(session, dashboard_options)
+                server = start_dashboard(CoreSource.for_runner(runner), dashboard_options)
                 print(f"ctrlbus core: dashboard at {server.display_url}", file=sys.stderr, flush=True)
                 output.note = f"dashboard {server.display_url}"
             while True:
@@ -174,7 +176,9 @@ def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
                 if runner.failure is not None:
                     print(f"ctrlbus core: the Core failed: {runner.failure}", file=sys.stderr, flush=True)
                     return 1
-                if connect_timeout and elapsed > connect_timeout and session.connects == 0:
+                with runner.lock:
+                    connects = session.connects
+                if connect_timeout and elapsed > connect_timeout and connects == 0:
                     raise ProtocolTimeout(
                         f"no answer to CONNECT_BASE from {args.port} within {connect_timeout:g} s "
                         "(is the base on this port and powered? --connect-timeout 0 waits forever)"
@@ -193,10 +197,18 @@ def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
 
 
 class StatusOutput:
-    """Writes the status: redrawn screen on a terminal, plain lines, or JSON lines."""
+    """Writes the status: redrawn screen on a terminal, plain lines, or JSON lines. The text is
+    made under `lock` (the lock of the runner that drives the session) and written after."""
 
-    def __init__(self, stream: TextIO, *, json_lines: bool) -> None:
+    def __init__(
+        self,
+        stream: TextIO,
+        *,
+        json_lines: bool,
+        lock: AbstractContextManager[Any] | None = None,
+    ) -> None:
         self.stream = stream
+        self.lock = lock if lock is not None else contextlib.nullcontext()
         self.json_lines = json_lines
         self.screen = not json_lines and _is_terminal(stream)
         self.last_seq = 0
@@ -207,19 +219,10 @@ class StatusOutput:
         """Write one update; False once the stream is gone."""
         if self.closed:
             return False
+        with self.lock:
+            text = self._text(session)
         try:
-            if self.json_lines:
-                status = json_status(session, self.last_seq)
-                if status["events"]:
-                    self.last_seq = status["events"][-1]["seq"]
-                self.stream.write(json.dumps(status, separators=(",", ":"), allow_nan=False) + "\n")
-            elif self.screen:
-                self.stream.write(SCREEN_HOME_CLEAR + render_screen(session, self.note) + "\n")
-            else:
-                self.stream.write(status_line(session) + "\n")
-                for event in session.events(self.last_seq):
-                    self.stream.write(f"{'':11}{event.direction:<4} {event.text}\n")
-                    self.last_seq = event.seq
+            self.stream.write(text)
             self.stream.flush()
         except BrokenPipeError:
             self.closed = True
@@ -230,6 +233,20 @@ class StatusOutput:
                 os.close(devnull)
             return False
         return True
+
+    def _text(self, session: CoreSession) -> str:
+        if self.json_lines:
+            status = json_status(session, self.last_seq)
+            if status["events"]:
+                self.last_seq = status["events"][-1]["seq"]
+            return json.dumps(status, separators=(",", ":"), allow_nan=False) + "\n"
+        if self.screen:
+            return SCREEN_HOME_CLEAR + render_screen(session, self.note) + "\n"
+        lines = [status_line(session) + "\n"]
+        for event in session.events(self.last_seq):
+            lines.append(f"{'':11}{event.direction:<4} {event.text}\n")
+            self.last_seq = event.seq
+        return "".join(lines)
 
 
 def _is_terminal(stream: TextIO) -> bool:

@@ -6,6 +6,14 @@ The thread writes what `poll()` returns, reads the link with a short timeout and
 runner reopens the link (if it was given a way to) and carries on. `stop()` asks the session to
 stop on purpose (it sends SEND_EVENT CORE_DISCONNECT if the base is connected), waits a moment for
 that, then closes the link.
+
+The session is sans-IO and holds no lock; the runner owns the thread that drives it, so the runner
+holds the lock: `lock` is taken around each call the thread makes (never while it waits for the
+link), and any other thread that reads or commands the session takes it too:
+
+    with runner.lock:
+        runner.session.set_velocity(0.2, 0.0)
+        pose = runner.session.pose
 """
 
 from __future__ import annotations
@@ -49,6 +57,7 @@ class CoreRunner:
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.session = session
+        self.lock = threading.RLock()  # held around every use of the session (see the module)
         self._link: Link | None = link
         self._reopen = reopen
         self._read_timeout_s = read_timeout_s
@@ -96,10 +105,14 @@ class CoreRunner:
         try:
             while True:
                 if self._stop.is_set() and stop_deadline is None:
-                    session.request_stop()
+                    with self.lock:
+                        session.request_stop()
                     stop_deadline = self._clock() + self._stop_grace_s
-                if stop_deadline is not None and (session.stopped or self._clock() > stop_deadline):
-                    break
+                if stop_deadline is not None:
+                    with self.lock:
+                        stopped = session.stopped
+                    if stopped or self._clock() > stop_deadline:
+                        break
                 link = self._link
                 if link is None:
                     failed_at = self._try_reopen(failed_at)
@@ -108,7 +121,8 @@ class CoreRunner:
                     self._exchange(link)
                 except LinkError as exc:
                     self.link_errors += 1
-                    session.link_failed(str(exc), self._clock())
+                    with self.lock:
+                        session.link_failed(str(exc), self._clock())
                     self._close()
                     failed_at = self._clock()
         except Exception as exc:  # a bug: report it rather than die silently
@@ -119,16 +133,19 @@ class CoreRunner:
 
     def _exchange(self, link: Link) -> None:
         session = self.session
-        frame = session.poll(self._clock())
+        with self.lock:
+            frame = session.poll(self._clock())
         if frame is not None:
             link.write(frame)
-        wake = session.next_poll_time()
+        with self.lock:
+            wake = session.next_poll_time()
         timeout = self._read_timeout_s
         if wake is not None:
             timeout = max(0.0, min(timeout, wake - self._clock()))
         data = link.read(timeout)
         if data:
-            session.receive(data, self._clock())
+            with self.lock:
+                session.receive(data, self._clock())
 
     def _try_reopen(self, failed_at: float | None) -> float | None:
         """Wait for the next reopen attempt (or the stop), then try; returns the failure time."""
@@ -142,7 +159,8 @@ class CoreRunner:
         try:
             self._link = self._reopen()
         except CtrlbusError as exc:
-            self.session.link_failed(str(exc), self._clock())
+            with self.lock:
+                self.session.link_failed(str(exc), self._clock())
             return self._clock()
         return None
 

@@ -14,8 +14,11 @@ It never reads a clock or a port:
     session.receive(answer_bytes, now)   # bytes from the link
     session.next_poll_time()             # when poll() may next have something to do
 
-Everything else (telemetry, controls, snapshot, statistics, event log) is thread-safe: the
-dashboard calls it from its own thread while a runner thread drives poll/receive.
+What it learns about the base is a typed model (`telemetry`, ctrlbus.core.telemetry), what it did
+is an event log (ctrlbus.core.events); the dashboard's JSON is made from both in ctrlbus.web.snapshot.
+The session holds no lock: it is driven from one thread at a time. A program that drives it from
+one thread and reads or commands it from another holds the lock of the runner that owns the
+thread (`CoreRunner.lock`) around each call.
 """
 
 from __future__ import annotations
@@ -23,39 +26,38 @@ from __future__ import annotations
 import enum
 import logging
 import math
-import threading
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 from ctrlbus import binconf
-from ctrlbus.compat import StrEnum
-from ctrlbus.constants import (
-    LINE_FAULT_BIT_NAMES,
-    LINE_FAULT_LIMIT,
-    MOTION_STALL,
-    MOTION_TRACTION_LOST,
-    POWER_CHARGING,
-    POWER_DC_CONNECTED,
-    POWER_ON_DOCK,
-)
+from ctrlbus.constants import LINE_FAULT_LIMIT
 from ctrlbus.constants import WATCHDOG_TRIPPED_CODE as WATCHDOG_HEALTH_CODE
 from ctrlbus.core.actions import Action, DriveDistance, TurnAngle
 from ctrlbus.core.config import CoreConfig
 from ctrlbus.core.docking import GoHome
+from ctrlbus.core.events import CoreEvent, EventLog, command_name, describe_request
 from ctrlbus.core.geometry import (
     SOURCE_CONF_ADV,
     BaseGeometry,
     compare_geometries,
     geometry_from_conf,
     geometry_from_tree,
-    geometry_view,
 )
 from ctrlbus.core.stats import LinkStats
+from ctrlbus.core.telemetry import (
+    BaseIdentity,
+    BaseTelemetry,
+    CommandState,
+    ConnectionState,
+    HealthError,
+    HealthState,
+    LinkTelemetry,
+)
 from ctrlbus.errors import BinaryConfigError, MessageError, UsageError
 from ctrlbus.frame import Frame, StreamDecoder
-from ctrlbus.kinematics import DeadreckonDelta, Pose, integrate_pose
+from ctrlbus.kinematics import DeadreckonDelta, Pose
 from ctrlbus.messages import (
     AnswerMessage,
     Cmd,
@@ -97,12 +99,9 @@ from ctrlbus.messages import (
     request_frame,
 )
 
+# The session's own names, and the model's that its API returns (kept importable from here).
 __all__ = [
     "FLUSH_FILLER",
-    "MAX_EVENTS",
-    "MAX_TRAIL_POINTS",
-    "SCHEMA_VERSION",
-    "TRAIL_STEP_MM",
     "BaseIdentity",
     "CommandState",
     "ConnectionState",
@@ -115,20 +114,8 @@ __all__ = [
 
 log = logging.getLogger("ctrlbus.core")
 
-SCHEMA_VERSION = 1
-MAX_EVENTS = 200
-MAX_TRAIL_POINTS = 2000
-TRAIL_STEP_MM = 10.0
 # §11.1: the flushing SYNC is a long frame of exactly 512 bytes: 4 header bytes, 507 filler, checksum.
 FLUSH_FILLER = bytes(507)
-# Answers that say the request did not arrive intact (§11.6): a failed attempt, sent again.
-
-
-class ConnectionState(StrEnum):
-    CONNECTING = "connecting"  # looking for the base, before the first connection
-    CONFIGURING = "configuring"  # connected, reading the configuration
-    CONNECTED = "connected"  # polling
-    DISCONNECTED = "disconnected"  # lost (reconnecting), stopped, or the link failed
 
 
 class _Purpose(enum.Enum):
@@ -166,61 +153,6 @@ class _Outstanding:
     schedule_name: str | None = None
 
 
-@dataclass(frozen=True)
-class BaseIdentity:
-    """The base as CONNECT_BASE describes it."""
-
-    model: str
-    firmware_version: str  # "major.minor"
-    hardware_version: int
-    serial: str  # 24 hex digits
-    firmware_version_suffix: str | None
-
-    @classmethod
-    def from_answer(cls, answer: ConnectBaseAnswer) -> BaseIdentity:
-        serial = "".join(f"{word:08X}" for word in answer.serial)
-        return cls(
-            answer.model,
-            answer.firmware_version_text,
-            answer.hardware_version,
-            serial,
-            answer.firmware_version_suffix,
-        )
-
-
-@dataclass(frozen=True)
-class HealthError:
-    code: int
-    message: str
-
-    @property
-    def level(self) -> int:
-        return self.code >> 24
-
-
-@dataclass(frozen=True)
-class HealthState:
-    flags: int | None
-    errors: tuple[HealthError, ...]
-
-
-@dataclass(frozen=True)
-class CoreEvent:
-    seq: int
-    t_s: float
-    direction: str  # "core" or "base"
-    text: str
-
-
-@dataclass(frozen=True)
-class CommandState:
-    vx_mps: float
-    omega_radps: float
-    estop: bool
-    mode: str  # idle | teleop | external | go_home | estop
-    activity: str | None
-
-
 # (name, request, rate attribute of PollRates) in the order §11.4 sends them when several are due.
 _SCHEDULE: tuple[tuple[str, RequestMessage | None, str], ...] = (
     ("set_v", None, "set_v_hz"),  # built at send time from the current velocity command
@@ -237,46 +169,18 @@ _DOCKING_ONLY = frozenset({"charger"})
 _TRACKED_PURPOSES = frozenset({_Purpose.CONFIG_ADV, _Purpose.CONFIG, _Purpose.SYSTEM_UP, _Purpose.POLL})
 
 
-def _command_name(code: int) -> str:
-    try:
-        return ExternalCommand(code).name
-    except ValueError:
-        return "unknown command"
-
-
-def _event_name(code: int) -> str:
-    try:
-        return Event(code).name
-    except ValueError:
-        return f"0x{code:02X}"
-
-
 def _check_finite(**values: float) -> None:
     for name, value in values.items():
         if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
             raise UsageError(f"{name} must be a finite number, got {value!r}")
 
 
-def describe_request(message: RequestMessage) -> str:
-    """How the event log names a request."""
-    if isinstance(message, ConnectBase):
-        return f"CONNECT_BASE v{message.protocol_version}"
-    if isinstance(message, SendEvent):
-        return f"SEND_EVENT {_event_name(message.event)}"
-    if isinstance(message, Sync):
-        return f"SYNC flush ({len(message.filler) + 5} bytes)"
-    if isinstance(message, HealthGetError):
-        return f"HEALTH_GET_ERROR #{message.index}"
-    return message.NAME
-
-
 class CoreSession:
-    """The Core emulator's protocol state machine and telemetry (sans-IO, thread-safe)."""
+    """The Core emulator's protocol state machine (sans-IO, one thread at a time)."""
 
     def __init__(self, config: CoreConfig | None = None, *, port: str = "") -> None:
         self.config = config if config is not None else CoreConfig()
         self.port = port
-        self._lock = threading.RLock()
         self._decoder = StreamDecoder(max_frame=self.config.max_frame, timeout=self.config.decoder_timeout_s)
         self._stats = LinkStats()
         self._subscribers: list[Callable[[str], None]] = []
@@ -307,68 +211,47 @@ class CoreSession:
         # and the request waits (held) until the flush is over.
         self._flush_pending = False
         self._held: _Outstanding | None = None
-        # Telemetry.
-        self._identity: BaseIdentity | None = None
-        self._geometry: BaseGeometry | None = None
-        self._configured = False
-        self._config_source: str | None = None
-        # §11.2: each source's geometry, where known (the Core uses the blob's when it has one).
-        self._views: dict[str, BaseGeometry] = {}
-        self._pose = Pose(0.0, 0.0, 0.0)
-        self._trail: deque[tuple[float, float]] = deque([(0.0, 0.0)], maxlen=MAX_TRAIL_POINTS)
-        self._deadreckon_timestamp_ms: int | None = None
-        self._motion_status: int | None = None
-        self._motor_totals_mm: tuple[int, int] | None = None
-        self._battery_percent: int | None = None
-        self._power_status: int | None = None
-        self._bumper_bitmap: int | None = None
-        self._distances_mm: tuple[float, ...] | None = None
-        self._charger: GetChargerDataAnswer | None = None
-        self._health = HealthState(None, ())
+        self._telemetry = BaseTelemetry()
         # Commands.
         self._vx = 0.0
         self._omega = 0.0
         self._estop = False
         self._action: Action | None = None
         self._last_outcome: str | None = None
-        self._events: deque[CoreEvent] = deque(maxlen=MAX_EVENTS)
-        self._event_seq = 0
+        self._events = EventLog()
 
     # ===================================================================== sans-IO interface
 
     def poll(self, now: float) -> bytes | None:
         """The next request frame to send at time `now` (seconds), or None if nothing is due."""
-        with self._lock:
-            self._advance(now)
-            # A false frame start can hold a real answer behind it until the line has been idle
-            # for the inter-byte timeout; apply it now rather than only when more bytes come.
-            if self._decoder.buffered:
-                for frame_in in self._decoder.feed(b"", now):
-                    self._on_frame(frame_in, now)
-            frame = self._poll_locked(now)
+        self._advance(now)
+        # A false frame start can hold a real answer behind it until the line has been idle
+        # for the inter-byte timeout; apply it now rather than only when more bytes come.
+        if self._decoder.buffered:
+            for frame_in in self._decoder.feed(b"", now):
+                self._on_frame(frame_in, now)
+        frame = self._next_request(now)
         self._notify()
         return frame
 
     def receive(self, data: bytes, now: float) -> None:
         """Bytes read from the link at time `now`."""
-        with self._lock:
-            self._advance(now)
-            self._expire(now)
-            for frame in self._decoder.feed(data, now):
-                self._on_frame(frame, now)
+        self._advance(now)
+        self._expire(now)
+        for frame in self._decoder.feed(data, now):
+            self._on_frame(frame, now)
         self._notify()
 
     def next_poll_time(self) -> float | None:
         """The earliest time at which poll() may return a frame or time something out, if no
         bytes arrive first; None when only arriving bytes (or a command) can change anything."""
-        with self._lock:
-            decoder_due = self._decoder.timeout_due
-            due = self._next_poll_time_locked()
-            if decoder_due is None:
-                return due
-            return decoder_due if due is None else min(due, decoder_due)
+        decoder_due = self._decoder.timeout_due
+        due = self._next_due_time()
+        if decoder_due is None:
+            return due
+        return decoder_due if due is None else min(due, decoder_due)
 
-    def _next_poll_time_locked(self) -> float | None:
+    def _next_due_time(self) -> float | None:
         outstanding = self._outstanding
         if outstanding is not None:
             return self._now if outstanding.resend else outstanding.deadline
@@ -387,33 +270,30 @@ class CoreSession:
     def request_stop(self) -> None:
         """Stop on purpose: once the request in flight is settled, send SEND_EVENT CORE_DISCONNECT
         (if connected), then stop. `stopped` tells when it is done."""
-        with self._lock:
-            if self._step is _Step.STOPPED or self._stop_requested:
-                return
-            self._stop_requested = True
-            self._cancel_action("the Core is stopping")
-            self._vx = self._omega = 0.0
-            if not self._connected_to_base():
-                self._finish_stop()
+        if self._step is _Step.STOPPED or self._stop_requested:
+            return
+        self._stop_requested = True
+        self._cancel_action("the Core is stopping")
+        self._vx = self._omega = 0.0
+        if not self._connected_to_base():
+            self._finish_stop()
         self._notify()
 
     @property
     def stopped(self) -> bool:
-        with self._lock:
-            return self._step is _Step.STOPPED
+        return self._step is _Step.STOPPED
 
     def link_failed(self, reason: str, now: float) -> None:
         """The runner could not read or write the link: the connection is gone."""
-        with self._lock:
-            self._advance(now)
-            self._abandon_outstanding()
-            if self._step is _Step.STOPPED:
-                pass
-            elif self._stop_requested:
-                self._finish_stop()
-            elif self._state is not ConnectionState.DISCONNECTED or self._state_reason != reason:
-                self._log("core", f"link failed: {reason}")
-                self._drop_connection(reason, now, notify_base=False)
+        self._advance(now)
+        self._abandon_outstanding()
+        if self._step is _Step.STOPPED:
+            pass
+        elif self._stop_requested:
+            self._finish_stop()
+        elif self._state is not ConnectionState.DISCONNECTED or self._state_reason != reason:
+            self._log("core", f"link failed: {reason}")
+            self._drop_connection(reason, now, notify_base=False)
         self._notify()
 
     # ============================================================================== controls
@@ -421,50 +301,45 @@ class CoreSession:
     def limits(self) -> tuple[float, float]:
         """(max |vx| m/s, max |omega| rad/s): the configured limits once the base's configuration
         is known, (0, 0) before."""
-        with self._lock:
-            if not self._configured:
-                return 0.0, 0.0
-            return self.config.max_vx_mps, self.config.max_omega_radps
+        if not self._telemetry.configured:
+            return 0.0, 0.0
+        return self.config.max_vx_mps, self.config.max_omega_radps
 
     def set_velocity(self, vx_mps: float, omega_radps: float) -> None:
         """Command a body velocity (clamped to limits()); cancels a running action; ignored while
         the emergency stop is latched."""
         _check_finite(vx_mps=vx_mps, omega_radps=omega_radps)
-        with self._lock:
-            if self._estop:
-                return
-            max_vx, max_omega = self.limits()
-            self._cancel_action("cancelled by a velocity command")
-            self._vx = max(-max_vx, min(max_vx, float(vx_mps)))
-            self._omega = max(-max_omega, min(max_omega, float(omega_radps)))
-            self._changed.add("command")
+        if self._estop:
+            return
+        max_vx, max_omega = self.limits()
+        self._cancel_action("cancelled by a velocity command")
+        self._vx = max(-max_vx, min(max_vx, float(vx_mps)))
+        self._omega = max(-max_omega, min(max_omega, float(omega_radps)))
+        self._changed.add("command")
         self._notify()
 
     def emergency_stop(self) -> None:
         """Zero velocity at once, cancel any action, latch until release_stop()."""
-        with self._lock:
-            self._cancel_action("cancelled by the emergency stop")
-            self._vx = self._omega = 0.0
-            if not self._estop:
-                self._estop = True
-                self._log("core", "emergency stop")
-            self._changed.add("command")
+        self._cancel_action("cancelled by the emergency stop")
+        self._vx = self._omega = 0.0
+        if not self._estop:
+            self._estop = True
+            self._log("core", "emergency stop")
+        self._changed.add("command")
         self._notify()
 
     def release_stop(self) -> None:
         """Unlatch the emergency stop; the velocity stays zero until commanded again."""
-        with self._lock:
-            if self._estop:
-                self._estop = False
-                self._log("core", "emergency stop released")
-            self._vx = self._omega = 0.0
-            self._changed.add("command")
+        if self._estop:
+            self._estop = False
+            self._log("core", "emergency stop released")
+        self._vx = self._omega = 0.0
+        self._changed.add("command")
         self._notify()
 
     def go_home(self) -> None:
         """Start docking on the charger using its beacons (ignored while the stop is latched)."""
-        with self._lock:
-            self._start_action(GoHome(self.config.docking), "requested")
+        self._start_action(GoHome(self.config.docking), "requested")
         self._notify()
 
     def drive(self, distance_m: float, speed_mps: float | None = None) -> None:
@@ -473,8 +348,7 @@ class CoreSession:
         _check_finite(distance_m=distance_m, speed_mps=speed)
         if speed <= 0:
             raise UsageError(f"speed_mps must be positive, got {speed!r}")
-        with self._lock:
-            self._start_action(DriveDistance(distance_m, min(speed, self.config.max_vx_mps)), "requested")
+        self._start_action(DriveDistance(distance_m, min(speed, self.config.max_vx_mps)), "requested")
         self._notify()
 
     def turn(self, angle_deg: float, rate_radps: float | None = None) -> None:
@@ -483,16 +357,14 @@ class CoreSession:
         _check_finite(angle_deg=angle_deg, rate_radps=rate)
         if rate <= 0:
             raise UsageError(f"rate_radps must be positive, got {rate!r}")
-        with self._lock:
-            self._start_action(TurnAngle(angle_deg, min(rate, self.config.max_omega_radps)), "requested")
+        self._start_action(TurnAngle(angle_deg, min(rate, self.config.max_omega_radps)), "requested")
         self._notify()
 
     def cancel_action(self) -> None:
         """Stop whatever action runs, as CANCEL_ACTION does."""
-        with self._lock:
-            self._cancel_action("cancelled")
-            self._vx = self._omega = 0.0
-            self._changed.add("command")
+        self._cancel_action("cancelled")
+        self._vx = self._omega = 0.0
+        self._changed.add("command")
         self._notify()
 
     def subscribe(self, callback: Callable[[str], None]) -> Callable[[], None]:
@@ -500,16 +372,14 @@ class CoreSession:
 
         Topics: connection, base, pose, command, battery, motion, bumpers, sensors, charger,
         health, events. Callbacks run in the thread that called poll/receive (or the control),
-        outside the session's lock; they must be quick. An exception in one is logged and
-        does not reach the session.
+        under whatever lock that thread holds (a runner's); they must be quick and must not wait
+        for another thread. An exception in one is logged and does not reach the session.
         """
-        with self._lock:
-            self._subscribers.append(callback)
+        self._subscribers.append(callback)
 
         def unsubscribe() -> None:
-            with self._lock:
-                if callback in self._subscribers:
-                    self._subscribers.remove(callback)
+            if callback in self._subscribers:
+                self._subscribers.remove(callback)
 
         return unsubscribe
 
@@ -517,8 +387,7 @@ class CoreSession:
 
     @property
     def state(self) -> ConnectionState:
-        with self._lock:
-            return self._state
+        return self._state
 
     @property
     def connected(self) -> bool:
@@ -527,109 +396,103 @@ class CoreSession:
     @property
     def connects(self) -> int:
         """Successful connections so far."""
-        with self._lock:
-            return self._stats.connects
+        return self._stats.connects
 
     @property
     def time_s(self) -> float:
         """Seconds since the session's first poll/receive."""
-        with self._lock:
-            return self._elapsed(self._now)
+        return self._elapsed(self._now)
 
     @property
     def pose(self) -> Pose:
         """The dead-reckoned pose, in the frame of the robot when the Core started."""
-        with self._lock:
-            return self._pose
+        return self._telemetry.pose
 
     @property
     def identity(self) -> BaseIdentity | None:
-        with self._lock:
-            return self._identity
+        return self._telemetry.identity
 
     @property
     def geometry(self) -> BaseGeometry | None:
-        with self._lock:
-            return self._geometry
+        return self._telemetry.geometry
 
     @property
     def battery_percent(self) -> int | None:
-        with self._lock:
-            return self._battery_percent
+        return self._telemetry.battery_percent
 
     @property
     def power_status(self) -> int | None:
-        with self._lock:
-            return self._power_status
+        return self._telemetry.power_status
 
     @property
     def bumper_bitmap(self) -> int | None:
-        with self._lock:
-            return self._bumper_bitmap
+        return self._telemetry.bumper_bitmap
 
     @property
     def bumpers_pressed(self) -> tuple[bool, ...]:
         """One flag per configured bumper (the bitmap is active low)."""
-        with self._lock:
-            return self._pressed_bumpers()
+        return self._telemetry.bumpers_pressed
 
     @property
     def distances_mm(self) -> tuple[float, ...] | None:
         """The 16 distances of the last GET_BASE_SENSOR_DATA (None before the first)."""
-        with self._lock:
-            return self._distances_mm
+        return self._telemetry.distances_mm
 
     @property
     def charger_probes(self) -> tuple[int, ...] | None:
-        with self._lock:
-            return None if self._charger is None else self._charger.probes
+        return self._telemetry.charger_probes
 
     @property
     def motion_status(self) -> int | None:
-        with self._lock:
-            return self._motion_status
+        return self._telemetry.motion_status
 
     @property
     def motor_totals_mm(self) -> tuple[int, int] | None:
-        with self._lock:
-            return self._motor_totals_mm
+        return self._telemetry.motor_totals_mm
 
     @property
     def health(self) -> HealthState:
-        with self._lock:
-            return self._health
+        return self._telemetry.health
 
     @property
     def command(self) -> CommandState:
-        with self._lock:
-            return self._command_state()
+        return self._command_state()
 
     @property
     def last_outcome(self) -> str | None:
         """How the last action ended."""
-        with self._lock:
-            return self._last_outcome
+        return self._last_outcome
 
     @property
     def offered_command(self) -> int | None:
         """The external command the base offered last (None before any)."""
-        with self._lock:
-            return self._offered_command
+        return self._offered_command
+
+    @property
+    def telemetry(self) -> BaseTelemetry:
+        """The model of the base (ctrlbus.core.telemetry), live: read it, never change it."""
+        return self._telemetry
 
     def events(self, since_seq: int = 0) -> list[CoreEvent]:
-        """Logged events with seq > since_seq, oldest first (at most MAX_EVENTS are kept)."""
-        with self._lock:
-            return [event for event in self._events if event.seq > since_seq]
+        """Logged events with seq > since_seq, oldest first (the last MAX_EVENTS of ctrlbus.core.events)."""
+        return self._events.since(since_seq)
+
+    def link_telemetry(self) -> LinkTelemetry:
+        """The connection and the link's counters."""
+        since = self._t0 if self._t0 is not None else self._now
+        return LinkTelemetry(
+            state=self._state,
+            port=self.port,
+            since_s=self._elapsed(self._state_since),
+            reason=self._state_reason,
+            requests_per_s=self._stats.requests_per_s(self._now, since),
+            stats=self._stats,
+            decoder=self._decoder.stats,
+        )
 
     def link_stats(self) -> dict[str, Any]:
-        """Link statistics as plain values (a superset of the snapshot's `link` part)."""
-        with self._lock:
-            return self._link_stats()
-
-    def snapshot(self) -> dict[str, Any]:
-        """The whole state, as docs/dashboard.md's schema (version 1) describes it."""
-        with self._lock:
-            return self._snapshot()
+        """Link statistics as plain values (a superset of the dashboard snapshot's `link` part)."""
+        return self.link_telemetry().as_dict()
 
     # ====================================================================== the state machine
 
@@ -655,7 +518,7 @@ class CoreSession:
             return max(rate, rates.charger_hz)  # see the on-dock bit promptly while docking
         return rate
 
-    def _poll_locked(self, now: float) -> bytes | None:
+    def _next_request(self, now: float) -> bytes | None:
         self._expire(now)
         outstanding = self._outstanding
         if self._flush_pending and (outstanding is None or outstanding.resend) and self._connected_to_base():
@@ -877,7 +740,7 @@ class CoreSession:
         self._followups.clear()
         self._health_collect = None
         self._last_ctrl_sent = None
-        self._configured = False
+        self._telemetry.configured = False
         if notify_base:
             self._step = _Step.NOTICE
         else:
@@ -1002,11 +865,11 @@ class CoreSession:
         elif purpose is _Purpose.CONFIG_ADV:
             self._on_config_adv(answer)
         elif purpose is _Purpose.CONFIG:
-            if isinstance(answer, GetBaseConfAnswer) and self._configured:
+            if isinstance(answer, GetBaseConfAnswer) and self._telemetry.configured:
                 self._note_second_view(geometry_from_conf(answer))  # asked besides a usable blob
             elif isinstance(answer, GetBaseConfAnswer):
                 self._use_geometry(geometry_from_conf(answer))
-            elif self._configured:
+            elif self._telemetry.configured:
                 pass  # no GET_BASE_CONF besides the blob: only one view
             else:
                 self._log("core", "no configuration from the base: going on without its geometry")
@@ -1023,7 +886,7 @@ class CoreSession:
 
     def _on_connected(self, answer: ConnectBaseAnswer, now: float) -> None:
         identity = BaseIdentity.from_answer(answer)
-        self._identity = identity
+        self._telemetry.identity = identity
         self._stats.connects += 1
         self._connect_attempts = 0
         suffix = f" {identity.firmware_version_suffix}" if identity.firmware_version_suffix else ""
@@ -1056,18 +919,15 @@ class CoreSession:
         self._step = _Step.CONFIG  # ERROR 0x8000 (no blob), or any other refusal
 
     def _note_second_view(self, conf: BaseGeometry) -> None:
-        self._views[conf.source] = conf
-        adv = self._views.get(SOURCE_CONF_ADV)
+        self._telemetry.views[conf.source] = conf
+        adv = self._telemetry.views.get(SOURCE_CONF_ADV)
         if adv is not None:
             for problem in compare_geometries(adv, conf):
                 self._log("core", f"the two configurations disagree: {problem}")
         self._changed.add("base")
 
     def _use_geometry(self, geometry: BaseGeometry | None) -> None:
-        self._views = {} if geometry is None else {geometry.source: geometry}
-        self._geometry = geometry
-        self._config_source = None if geometry is None else geometry.source
-        self._configured = True
+        self._telemetry.use_geometry(geometry)
         self._changed.add("base")
 
     def _on_system_up(self, now: float) -> None:
@@ -1091,42 +951,39 @@ class CoreSession:
         action = self._action
         if isinstance(answer, SetVAndGetDeadreckonAnswer):
             delta = DeadreckonDelta(answer.dx_mm, answer.dy_mm, answer.dtheta_deg)
-            self._pose = integrate_pose(self._pose, delta)
-            last_x, last_y = self._trail[-1]
-            if math.hypot(self._pose.x_mm - last_x, self._pose.y_mm - last_y) >= TRAIL_STEP_MM:
-                self._trail.append((self._pose.x_mm, self._pose.y_mm))
-            self._motion_status = answer.status
-            self._deadreckon_timestamp_ms = answer.timestamp_ms
+            self._telemetry.move(delta)
+            self._telemetry.motion_status = answer.status
+            self._telemetry.deadreckon_timestamp_ms = answer.timestamp_ms
             if action is not None:
                 action.on_motion(delta)
             self._changed.update(("pose", "motion"))
         elif isinstance(answer, GetBaseBumperDataAnswer):
-            self._bumper_bitmap = answer.bitmap
+            self._telemetry.bumper_bitmap = answer.bitmap
             if action is not None:
-                action.on_bumpers(any(self._pressed_bumpers()), now)
+                action.on_bumpers(any(self._telemetry.bumpers_pressed), now)
             self._changed.add("bumpers")
         elif isinstance(answer, GetBaseSensorDataAnswer):
-            self._distances_mm = answer.distances_mm
+            self._telemetry.distances_mm = answer.distances_mm
             self._changed.add("sensors")
         elif isinstance(answer, GetBaseStatusAnswer):
-            self._battery_percent = answer.battery_percent
-            self._power_status = answer.power_status
+            self._telemetry.battery_percent = answer.battery_percent
+            self._telemetry.power_status = answer.power_status
             if action is not None:
                 action.on_status(answer.power_status, now)
             self._changed.add("battery")
         elif isinstance(answer, GetBaseMotorDataAnswer):
-            self._motor_totals_mm = (answer.left_distance_mm, answer.right_distance_mm)
-            self._motion_status = answer.status
+            self._telemetry.motor_totals_mm = (answer.left_distance_mm, answer.right_distance_mm)
+            self._telemetry.motion_status = answer.status
             self._changed.add("motion")
         elif isinstance(answer, GetChargerDataAnswer):
-            self._charger = answer
+            self._telemetry.charger = answer
             if action is not None:
                 action.on_charger(answer.probes, now)
             self._changed.add("charger")
         elif isinstance(answer, PollBaseCmdAnswer):
             if answer.command is not None:
                 self._offered_command = answer.command
-                self._log("base", f"base offers {_command_name(answer.command)} (0x{answer.command:02X})")
+                self._log("base", f"base offers {command_name(answer.command)} (0x{answer.command:02X})")
                 self._followups.appendleft(PollBaseAnsCmd())
         elif isinstance(answer, HealthGetHealthAnswer):
             self._on_health(answer)
@@ -1158,7 +1015,7 @@ class CoreSession:
             self._set_health(self._health_flags_pending, tuple(item for item in collect if item is not None))
 
     def _set_health(self, flags: int | None, errors: tuple[HealthError, ...]) -> None:
-        previous = {error.code for error in self._health.errors}
+        previous = {error.code for error in self._telemetry.health.errors}
         for error in errors:
             if error.code not in previous:
                 self._log("base", f"health: 0x{error.code:08X} {error.message}")
@@ -1167,8 +1024,8 @@ class CoreSession:
         current = {error.code for error in errors}
         for code in sorted(previous - current):
             self._log("base", f"health: 0x{code:08X} cleared")
-        if self._health != HealthState(flags, errors):
-            self._health = HealthState(flags, errors)
+        if self._telemetry.health != HealthState(flags, errors):
+            self._telemetry.health = HealthState(flags, errors)
             self._changed.add("health")
 
     # ============================================================================== actions
@@ -1176,7 +1033,7 @@ class CoreSession:
     def _act_on(self, code: int) -> None:
         """What the Core does with an external command it has acknowledged (§11.5)."""
         config = self.config
-        name = _command_name(code)
+        name = command_name(code)
         if code == ExternalCommand.CANCEL_ACTION:
             self._cancel_action("cancelled by CANCEL_ACTION")
             self._vx = self._omega = 0.0
@@ -1252,193 +1109,19 @@ class CoreSession:
     # ====================================================================== events, notify
 
     def _log(self, direction: str, text: str) -> None:
-        self._event_seq += 1
-        event = CoreEvent(self._event_seq, round(self._elapsed(self._now), 4), direction, text)
-        self._events.append(event)
+        event = self._events.add(self._elapsed(self._now), direction, text)
         self._changed.add("events")
         log.debug("%s %.3f %s", direction, event.t_s, text)
 
     def _notify(self) -> None:
-        with self._lock:
-            if not self._changed:
-                return
-            topics = sorted(self._changed)
-            self._changed.clear()
-            subscribers = list(self._subscribers)
+        if not self._changed:
+            return
+        topics = sorted(self._changed)
+        self._changed.clear()
+        subscribers = list(self._subscribers)
         for topic in topics:
             for callback in subscribers:
                 try:
                     callback(topic)
                 except Exception:  # a subscriber's bug must not stop the Core
                     log.exception("a Core subscriber failed on %r", topic)
-
-    # ============================================================================= snapshot
-
-    def _pressed_bumpers(self) -> tuple[bool, ...]:
-        bitmap = self._bumper_bitmap
-        geometry = self._geometry
-        if bitmap is None or geometry is None:
-            return ()
-        return tuple(not bitmap >> bumper.bit & 1 for bumper in geometry.bumpers)
-
-    def _link_stats(self) -> dict[str, Any]:
-        stats = self._stats
-        decoder = self._decoder.stats
-        p50, p99 = stats.latency_percentiles_ms()
-        since = self._t0 if self._t0 is not None else self._now
-        return {
-            "connection": {
-                "state": self._state.value,
-                "port": self.port,
-                "since_s": round(self._elapsed(self._state_since), 4),
-                "connects": stats.connects,
-            },
-            "requests": stats.requests,
-            "requests_per_s": round(stats.requests_per_s(self._now, since), 3),
-            "latency_p50_ms": None if p50 is None else round(p50, 3),
-            "latency_p99_ms": None if p99 is None else round(p99, 3),
-            "errors_by_code": {
-                f"0x{code:04X}": count for code, count in sorted(stats.errors_by_code.items())
-            },
-            "checksum_failures": decoder.checksum_errors,
-            "resyncs": decoder.resyncs,
-            "timeouts": stats.timeouts,
-            "watchdog_trips": stats.watchdog_trips,
-            "retries": stats.retries,
-            "lost_requests": stats.lost_requests,
-            "superseded": stats.superseded,
-            "line_faults_by_bit": {
-                f"0x{bit:02X}": stats.line_fault_bits[bit] for bit in LINE_FAULT_BIT_NAMES
-            },
-            # Beyond the dashboard schema:
-            "requests_tracked": stats.tracked_requests,
-            "requests_answered": stats.answered_requests,
-            "abandoned_at_disconnect": stats.abandoned_at_disconnect,
-            "answers": stats.answers,
-            "connect_attempts": stats.connect_attempts,
-            "disconnects": stats.disconnects,
-            "reason": self._state_reason,
-            "invalid_answers": stats.invalid_answers,
-            "malformed_answers": stats.malformed_answers,
-            "stray_answers": stats.stray_answers,
-            "not_synced_reports": stats.not_synced_reports,
-            "flushed_frames": stats.flushed_frames,
-            "watchdog_reported": stats.watchdog_reported,
-            "latency_samples": stats.latency_samples,
-            "decoder": {
-                "frames": decoder.frames,
-                "bytes_discarded": decoder.bytes_discarded,
-                "checksum_errors": decoder.checksum_errors,
-                "oversize": decoder.oversize,
-                "timeouts": decoder.timeouts,
-                "empty_frames": decoder.empty_frames,
-                "resyncs": decoder.resyncs,
-            },
-        }
-
-    def _snapshot(self) -> dict[str, Any]:
-        identity = self._identity
-        geometry = self._geometry
-        base: dict[str, Any] | None = None
-        if identity is not None and self._configured:
-            base = {
-                "model": identity.model,
-                "firmware_version": identity.firmware_version,
-                "hardware_version": identity.hardware_version,
-                "serial": identity.serial,
-                "shape": "circle" if geometry is None else geometry.shape,
-                "radius_mm": 0.0 if geometry is None else geometry.radius_mm,
-                "config_source": self._config_source or "GET_BASE_CONF",
-                "views": {source: geometry_view(view) for source, view in self._views.items()},
-            }
-        max_vx, max_omega = self.limits()
-        command = self._command_state()
-        status = self._motion_status
-        power = self._power_status
-        bitmap = self._bumper_bitmap
-        distances = self._distances_mm
-        sensors = []
-        bumpers = []
-        cliffs = []
-        if geometry is not None:
-            for sensor in geometry.sensors:
-                reading = None if distances is None else distances[sensor.slot]
-                sensors.append({**sensor.mount.as_dict(), "distance_mm": reading})
-            for bumper in geometry.bumpers:
-                pressed = bitmap is not None and not bitmap >> bumper.bit & 1
-                bumpers.append({**bumper.mount.as_dict(), "bit": bumper.bit, "pressed": pressed})
-            for bit in geometry.cliff_bits:
-                cliffs.append({"bit": bit, "triggered": bitmap is not None and not bitmap >> bit & 1})
-        charger = self._charger
-        flags = self._health.flags
-        link = self._link_stats()
-        schema_link_keys = (
-            "connection",
-            "requests",
-            "requests_per_s",
-            "latency_p50_ms",
-            "latency_p99_ms",
-            "errors_by_code",
-            "checksum_failures",
-            "resyncs",
-            "timeouts",
-            "watchdog_trips",
-            "retries",
-            "lost_requests",
-            "superseded",
-            "line_faults_by_bit",
-        )
-        return {
-            "schema": SCHEMA_VERSION,
-            "time_s": round(self._elapsed(self._now), 4),
-            "base": base,
-            "limits": {"vx_mps": max_vx, "omega_radps": max_omega},
-            "pose": {
-                "x_mm": round(self._pose.x_mm, 3),
-                "y_mm": round(self._pose.y_mm, 3),
-                "theta_deg": round(self._pose.theta_deg, 4),
-            },
-            "trail": [[round(x, 1), round(y, 1)] for x, y in self._trail],
-            "command": {
-                "vx_mps": command.vx_mps,
-                "omega_radps": command.omega_radps,
-                "estop": command.estop,
-                "mode": command.mode,
-                "activity": command.activity,
-            },
-            "motion": {
-                "status": status,
-                "stall": status is not None and bool(status & MOTION_STALL),
-                "traction_lost": status is not None and bool(status & MOTION_TRACTION_LOST),
-            },
-            "battery": {
-                "percent": self._battery_percent,
-                "power_status": power,
-                "charging": power is not None and bool(power & POWER_CHARGING),
-                "dc_connected": power is not None and bool(power & POWER_DC_CONNECTED),
-                "on_dock": power is not None and bool(power & POWER_ON_DOCK),
-            },
-            "sensors": sensors,
-            "bumper_bitmap": bitmap,
-            "bumpers": bumpers,
-            "cliffs": cliffs,
-            "charger": None
-            if charger is None
-            else {
-                "beacon_count": charger.beacon_count,
-                "probe_count": charger.probe_count,
-                "probes": list(charger.probes),
-            },
-            "health": {
-                "flags": flags,
-                "warning": flags is not None and bool(flags & 1),
-                "error": flags is not None and bool(flags & 2),
-                "fatal": flags is not None and bool(flags & 4),
-                "errors": [{"code": error.code, "message": error.message} for error in self._health.errors],
-            },
-            "events": [
-                {"seq": event.seq, "t_s": event.t_s, "direction": event.direction, "text": event.text}
-                for event in self._events
-            ],
-            "link": {key: link[key] for key in schema_link_keys},
-        }

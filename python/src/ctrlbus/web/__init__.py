@@ -1,7 +1,9 @@
 # SPDX-License-Identifier: MIT
 """The browser dashboard: an optional layer over the Core emulator (the core never imports it).
 
-- `ctrlbus.web.source`: the `DashboardSource` protocol the Core emulator implements.
+- `ctrlbus.web.source`: the `DashboardSource` protocol, and `CoreSource`, a Core session under
+  its runner's lock.
+- `ctrlbus.web.snapshot`: a Core session's state as the dashboard's JSON snapshot.
 - `ctrlbus.web.schema`: the snapshot schema (docs/dashboard.md) as a checker.
 - `ctrlbus.web.control`: strict parsing of the page's control messages.
 - `ctrlbus.web.options`: address, token and rate, validated before anything starts.

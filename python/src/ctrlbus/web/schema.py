@@ -11,6 +11,9 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from ctrlbus.core.events import MAX_EVENTS  # the schema's limits are the Core's own
+from ctrlbus.core.telemetry import MAX_TRAIL_POINTS
+
 __all__ = [
     "COMMAND_MODES",
     "CONNECTION_STATES",
@@ -186,9 +189,6 @@ SNAPSHOT: Spec = {
     },
     "sim?": SIM,
 }
-
-MAX_TRAIL_POINTS = 2000
-MAX_EVENTS = 200
 
 
 def check_snapshot(snapshot: object) -> list[str]:

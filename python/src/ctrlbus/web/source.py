@@ -1,18 +1,24 @@
 # SPDX-License-Identifier: MIT
 """What the dashboard needs from the program it shows: the `DashboardSource` protocol.
 
-The Core emulator implements it (structurally: it never imports this module, because the core
-must not depend on the web layer). Every method is called from the dashboard's own thread, so an
-implementation must be thread-safe and quick: it may take a lock for a moment, never wait for the
-link. The snapshot's schema is in docs/dashboard.md; `ctrlbus.web.schema.check_snapshot` checks a
-snapshot against it.
+Every method is called from the dashboard's own thread, so an implementation must be thread-safe
+and quick: it may take a lock for a moment, never wait for the link. `CoreSource` is the Core
+emulator's: its session is sans-IO and lock-free, so it takes the lock of the runner that drives
+the session around each call. The snapshot's schema is in docs/dashboard.md;
+`ctrlbus.web.schema.check_snapshot` checks a snapshot against it.
 """
 
 from __future__ import annotations
 
+from contextlib import AbstractContextManager
 from typing import Any, Protocol, runtime_checkable
 
+from ctrlbus.core.runner import CoreRunner
+from ctrlbus.core.session import CoreSession
+from ctrlbus.web.snapshot import dashboard_snapshot
+
 __all__ = [
+    "CoreSource",
     "DashboardSource",
     "ExternalCommandSink",
     "accepts_external_commands",
@@ -65,3 +71,40 @@ class ExternalCommandSink(Protocol):
 def accepts_external_commands(source: object) -> bool:
     """Whether the page should show the external-command buttons for this source."""
     return isinstance(source, ExternalCommandSink)
+
+
+class CoreSource:
+    """A Core session as a `DashboardSource`: each call holds `lock`, the lock of the thread that
+    drives the session (`CoreRunner.lock`; `for_runner` takes both from a runner)."""
+
+    def __init__(self, session: CoreSession, lock: AbstractContextManager[Any]) -> None:
+        self.session = session
+        self.lock = lock
+
+    @classmethod
+    def for_runner(cls, runner: CoreRunner) -> CoreSource:
+        return cls(runner.session, runner.lock)
+
+    def snapshot(self) -> dict[str, Any]:
+        with self.lock:
+            return dashboard_snapshot(self.session)
+
+    def set_velocity(self, vx_mps: float, omega_radps: float) -> None:
+        with self.lock:
+            self.session.set_velocity(vx_mps, omega_radps)
+
+    def emergency_stop(self) -> None:
+        with self.lock:
+            self.session.emergency_stop()
+
+    def release_stop(self) -> None:
+        with self.lock:
+            self.session.release_stop()
+
+    def go_home(self) -> None:
+        with self.lock:
+            self.session.go_home()
+
+    def limits(self) -> tuple[float, float]:
+        with self.lock:
+            return self.session.limits()

@@ -1,8 +1,10 @@
 # SPDX-License-Identifier: MIT
 """What `ctrlbus core` shows: a one-screen status, a one-line status, and a JSON status object.
 
-All three are built from a session's snapshot (docs/dashboard.md) and link statistics, so they
-show the same numbers the dashboard does. docs/core.md documents the JSON object's fields.
+All three are built from a session's dashboard snapshot (ctrlbus.web.snapshot, docs/dashboard.md)
+and link statistics, so they show the same numbers the dashboard does. docs/core.md documents the
+JSON object's fields. They read the session without a lock: a caller whose session a runner drives
+holds `CoreRunner.lock` (ctrlbus.cli.core_cmd does).
 """
 
 from __future__ import annotations
@@ -10,6 +12,7 @@ from __future__ import annotations
 from typing import Any
 
 from ctrlbus.core.session import CoreSession
+from ctrlbus.web.snapshot import dashboard_snapshot
 
 __all__ = [
     "SCREEN_EVENTS",
@@ -26,7 +29,7 @@ SCREEN_EVENTS = 8
 
 def json_status(session: CoreSession, since_seq: int = 0) -> dict[str, Any]:
     """One JSON status object (docs/core.md); `events` holds those with seq > since_seq."""
-    snap = session.snapshot()
+    snap = dashboard_snapshot(session)
     stats = session.link_stats()
     link = snap["link"]
     connection = link["connection"]
@@ -78,7 +81,7 @@ def _yes(flag: bool) -> str:
 
 def status_line(session: CoreSession) -> str:
     """A one-line summary, for output that is not a terminal."""
-    snap = session.snapshot()
+    snap = dashboard_snapshot(session)
     link = snap["link"]
     pose = snap["pose"]
     battery = snap["battery"]["percent"]
@@ -96,7 +99,7 @@ def status_line(session: CoreSession) -> str:
 def render_screen(session: CoreSession, note: str | None = None) -> str:
     """The whole status as lines of text (no ANSI codes); `note` (e.g. the dashboard's address)
     goes on the second line, since the redraw clears anything printed before."""
-    snap = session.snapshot()
+    snap = dashboard_snapshot(session)
     stats = session.link_stats()
     link = snap["link"]
     connection = link["connection"]
