@@ -74,27 +74,50 @@ static inline bool codec_has_empty_ok(ctrlbus_req_kind_t kind)
 
 /* ---- writing answers: what messages.c shares with the base stack --------------------------- */
 
-/* Writes the fields of one answer layout; the struct has been checked (its _size). */
-typedef void (*ctrlbus_codec_put_fn)(ctrlbus_sink_t *sink, const void *answer);
+/* An answer layout: its fields in wire order, each read from the answer struct at `offset`:
+ * a table walked by one writer (ctrlbus_codec_put_fields) instead of one function per layout. */
+typedef enum {
+    FIELD_END,          /* the table's end */
+    FIELD_U8,           /* `count` uint8_t (or bool) values */
+    FIELD_U16,          /* `count` uint16_t values, little-endian */
+    FIELD_U32,          /* `count` uint32_t or int32_t values, little-endian (two's complement) */
+    FIELD_TEXT,         /* a char array: its text up to the NUL, zero-padded to `count` bytes */
+    FIELD_BYTES,        /* a `const uint8_t *`: the rest of the payload, whatever its length */
+    FIELD_POLL_COMMAND, /* a bool has_command then the command byte: the command or 0xFF */
+} ctrlbus_codec_field_kind_t;
+
+typedef struct {
+    uint8_t kind; /* ctrlbus_codec_field_kind_t */
+    uint8_t count;
+    uint8_t offset; /* offsetof the member in the layout's struct */
+} ctrlbus_codec_field_t;
+
+typedef const ctrlbus_codec_field_t *ctrlbus_codec_layout_t;
+
+/* Writes `size` payload bytes of an answer struct through its layout; the struct has been
+ * checked (its _size gave `size`), and the size ends the walk (optional tail fields, the short
+ * bumper form). */
+void ctrlbus_codec_put_fields(ctrlbus_sink_t *sink, ctrlbus_codec_layout_t layout,
+                              const void *answer, size_t size);
 
 /* An OK answer frame of `size` payload bytes (a negative size is a check's error, returned
- * before anything is written), its fields through put (NULL: an empty payload), its checksum.
+ * before anything is written), its fields through layout (NULL: an empty payload), its checksum.
  * Returns the frame's size or a negative error. */
-int32_t ctrlbus_codec_write_ok(ctrlbus_sink_t *sink, int32_t size, ctrlbus_codec_put_fn put,
+int32_t ctrlbus_codec_write_ok(ctrlbus_sink_t *sink, int32_t size, ctrlbus_codec_layout_t layout,
                                const void *answer, ctrlbus_frame_type_t type);
 
-/* Each layout's fields, in wire order (answer points at that layout's struct). */
-void ctrlbus_codec_connect_base_fields(ctrlbus_sink_t *sink, const void *answer);
-void ctrlbus_codec_get_base_conf_fields(ctrlbus_sink_t *sink, const void *answer);
-void ctrlbus_codec_get_base_conf_adv_fields(ctrlbus_sink_t *sink, const void *answer);
-void ctrlbus_codec_get_base_status_fields(ctrlbus_sink_t *sink, const void *answer);
-void ctrlbus_codec_get_base_motor_data_fields(ctrlbus_sink_t *sink, const void *answer);
-void ctrlbus_codec_get_base_sensor_data_fields(ctrlbus_sink_t *sink, const void *answer);
-void ctrlbus_codec_get_base_bumper_data_fields(ctrlbus_sink_t *sink, const void *answer);
-void ctrlbus_codec_get_charger_data_fields(ctrlbus_sink_t *sink, const void *answer);
-void ctrlbus_codec_set_v_and_get_deadreckon_fields(ctrlbus_sink_t *sink, const void *answer);
-void ctrlbus_codec_poll_base_cmd_fields(ctrlbus_sink_t *sink, const void *answer);
-void ctrlbus_codec_health_get_health_fields(ctrlbus_sink_t *sink, const void *answer);
-void ctrlbus_codec_health_get_error_fields(ctrlbus_sink_t *sink, const void *answer);
+/* Each answer's layout (messages.c). */
+extern const ctrlbus_codec_field_t ctrlbus_codec_connect_base_layout[];
+extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_conf_layout[];
+extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_conf_adv_layout[];
+extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_status_layout[];
+extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_motor_data_layout[];
+extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_sensor_data_layout[];
+extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_bumper_data_layout[];
+extern const ctrlbus_codec_field_t ctrlbus_codec_get_charger_data_layout[];
+extern const ctrlbus_codec_field_t ctrlbus_codec_set_v_and_get_deadreckon_layout[];
+extern const ctrlbus_codec_field_t ctrlbus_codec_poll_base_cmd_layout[];
+extern const ctrlbus_codec_field_t ctrlbus_codec_health_get_health_layout[];
+extern const ctrlbus_codec_field_t ctrlbus_codec_health_get_error_layout[];
 
 #endif

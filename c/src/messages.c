@@ -6,13 +6,18 @@
 
 #include "codec.h"
 
-static void put_position(ctrlbus_sink_t *sink, const ctrlbus_position_t *position)
-{
-    ctrlbus_sink_put_s32(sink, position->x_mm_q8);
-    ctrlbus_sink_put_s32(sink, position->y_mm_q8);
-    ctrlbus_sink_put_s32(sink, position->z_mm_q8);
-    ctrlbus_sink_put_u32(sink, position->angle_deg_q8);
-}
+#include <stddef.h>
+
+/* A position is four 32-bit words, and a run of positions a run of words. */
+#define POSITION_WORDS (CTRLBUS_CONF_SLOTS * 4u)
+typedef char position_is_four_words[sizeof(ctrlbus_position_t) == 16u ? 1 : -1];
+/* POLL_BASE_CMD's command byte follows has_command (FIELD_POLL_COMMAND reads both). */
+typedef char command_follows_flag[offsetof(ctrlbus_poll_base_cmd_answer_t, command) ==
+                                          offsetof(ctrlbus_poll_base_cmd_answer_t, has_command) + 1u
+                                      ? 1
+                                      : -1];
+/* Every field offset of a layout fits a byte (the largest: GET_BASE_CONF's bumpers). */
+typedef char offsets_fit_a_byte[offsetof(ctrlbus_get_base_conf_answer_t, bumpers) < 256u ? 1 : -1];
 
 /* Whether text (up to its NUL, at most max_chars characters) can be written as a text field:
  * ASCII, and not longer than max_chars. */
@@ -213,7 +218,42 @@ int32_t ctrlbus_request_decode(ctrlbus_request_t *out, uint8_t cmd, const uint8_
 
 /* ---- answers: one encoder per layout -------------------------------------------------------- */
 
-int32_t ctrlbus_codec_write_ok(ctrlbus_sink_t *sink, int32_t size, ctrlbus_codec_put_fn put,
+/* The one field writer: walks a layout's fields until `size` bytes are out (the size, checked
+ * before, decides the optional tail fields and the short bumper form). Each value is read from
+ * the struct at the field's offset with the field's own type, and goes out through one call;
+ * text goes byte by byte (zeros after its NUL), so no deeper writer is on the stack. */
+void ctrlbus_codec_put_fields(ctrlbus_sink_t *sink, ctrlbus_codec_layout_t layout,
+                              const void *answer, size_t size)
+{
+    for (; size > 0u && layout->kind != FIELD_END; layout++) {
+        const uint8_t *at = (const uint8_t *)answer + layout->offset;
+        uint8_t kind = layout->kind;
+        if (kind == FIELD_BYTES) {
+            ctrlbus_sink_put(sink, *(const uint8_t *const *)(const void *)at, size);
+            return; /* the rest of the payload */
+        }
+        size_t width = kind == FIELD_U32 ? 4u : kind == FIELD_U16 ? 2u : 1u;
+        bool text_ended = false;
+        for (size_t count = layout->count; count > 0u && size > 0u; count--, at += width) {
+            uint32_t value = width == 4u   ? *(const uint32_t *)(const void *)at
+                             : width == 2u ? *(const uint16_t *)(const void *)at
+                                           : at[0];
+            if (kind == FIELD_TEXT) {
+                text_ended = text_ended || value == 0u;
+                value = text_ended ? 0u : value;
+            } else if (kind == FIELD_POLL_COMMAND) { /* has_command, then the command */
+                value = value != 0u ? at[1] : CTRLBUS_POLL_NOTHING_PENDING;
+            }
+            uint8_t bytes[4] = {(uint8_t)(value & 0xFFu), (uint8_t)((value >> 8) & 0xFFu),
+                                (uint8_t)((value >> 16) & 0xFFu), (uint8_t)(value >> 24)};
+            size_t piece = width < size ? width : size; /* an answer may end inside a word */
+            ctrlbus_sink_put(sink, bytes, piece);
+            size -= piece;
+        }
+    }
+}
+
+int32_t ctrlbus_codec_write_ok(ctrlbus_sink_t *sink, int32_t size, ctrlbus_codec_layout_t layout,
                                const void *answer, ctrlbus_frame_type_t type)
 {
     if (size < 0) {
@@ -223,21 +263,21 @@ int32_t ctrlbus_codec_write_ok(ctrlbus_sink_t *sink, int32_t size, ctrlbus_codec
     if (result < 0) {
         return result;
     }
-    if (put != NULL) {
-        put(sink, answer);
+    if (layout != NULL) {
+        ctrlbus_codec_put_fields(sink, layout, answer, (size_t)size);
     }
     return ctrlbus_sink_end(sink);
 }
 
 /* The per-layout _put: the check, then the fields (a bad struct fails the sink's frame). */
-static void put_checked(ctrlbus_sink_t *sink, int32_t size, ctrlbus_codec_put_fn put,
+static void put_checked(ctrlbus_sink_t *sink, int32_t size, ctrlbus_codec_layout_t layout,
                         const void *answer)
 {
     if (size < 0) {
         ctrlbus_sink_fail(sink, size);
         return;
     }
-    put(sink, answer);
+    ctrlbus_codec_put_fields(sink, layout, answer, (size_t)size);
 }
 
 /* The size of a layout whose size and values cannot vary. */
@@ -268,24 +308,19 @@ int32_t ctrlbus_connect_base_answer_size(const ctrlbus_connect_base_answer_t *a)
                                           : CTRLBUS_CONNECT_BASE_ANSWER_SIZE;
 }
 
-void ctrlbus_codec_connect_base_fields(ctrlbus_sink_t *sink, const void *answer)
-{
-    const ctrlbus_connect_base_answer_t *a = answer;
-    ctrlbus_sink_put_text(sink, a->model, CTRLBUS_MODEL_LEN);
-    ctrlbus_sink_put_u16(sink, a->firmware_version);
-    ctrlbus_sink_put_u16(sink, a->hardware_version);
-    for (size_t i = 0; i < CTRLBUS_SERIAL_WORDS; i++) {
-        ctrlbus_sink_put_u32(sink, a->serial[i]);
-    }
-    if (a->has_firmware_version_suffix) {
-        ctrlbus_sink_put_text(sink, a->firmware_version_suffix,
-                              CTRLBUS_FIRMWARE_VERSION_SUFFIX_LEN);
-    }
-}
+const ctrlbus_codec_field_t ctrlbus_codec_connect_base_layout[] = {
+    {FIELD_TEXT, CTRLBUS_MODEL_LEN, (uint8_t)offsetof(ctrlbus_connect_base_answer_t, model)},
+    {FIELD_U16, 1, (uint8_t)offsetof(ctrlbus_connect_base_answer_t, firmware_version)},
+    {FIELD_U16, 1, (uint8_t)offsetof(ctrlbus_connect_base_answer_t, hardware_version)},
+    {FIELD_U32, CTRLBUS_SERIAL_WORDS, (uint8_t)offsetof(ctrlbus_connect_base_answer_t, serial)},
+    /* only in the 39-byte form: the size ends the walk before it */
+    {FIELD_TEXT, CTRLBUS_FIRMWARE_VERSION_SUFFIX_LEN, (uint8_t)offsetof(ctrlbus_connect_base_answer_t, firmware_version_suffix)},
+    {FIELD_END, 0, 0},
+};
 
 void ctrlbus_connect_base_answer_put(ctrlbus_sink_t *sink, const ctrlbus_connect_base_answer_t *a)
 {
-    put_checked(sink, ctrlbus_connect_base_answer_size(a), ctrlbus_codec_connect_base_fields, a);
+    put_checked(sink, ctrlbus_connect_base_answer_size(a), ctrlbus_codec_connect_base_layout, a);
 }
 
 int32_t ctrlbus_connect_base_answer_write(ctrlbus_sink_t *sink,
@@ -293,7 +328,7 @@ int32_t ctrlbus_connect_base_answer_write(ctrlbus_sink_t *sink,
                                           ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, ctrlbus_connect_base_answer_size(a),
-                                  ctrlbus_codec_connect_base_fields, a, type);
+                                  ctrlbus_codec_connect_base_layout, a, type);
 }
 
 /* GET_BASE_CONF */
@@ -306,28 +341,21 @@ int32_t ctrlbus_get_base_conf_answer_size(const ctrlbus_get_base_conf_answer_t *
     return CTRLBUS_GET_BASE_CONF_ANSWER_SIZE;
 }
 
-static void put_positions(ctrlbus_sink_t *sink, const ctrlbus_position_t *positions)
-{
-    for (size_t i = 0; i < CTRLBUS_CONF_SLOTS; i++) {
-        put_position(sink, &positions[i]);
-    }
-}
-
-void ctrlbus_codec_get_base_conf_fields(ctrlbus_sink_t *sink, const void *answer)
-{
-    const ctrlbus_get_base_conf_answer_t *a = answer;
-    ctrlbus_sink_put_u8(sink, a->base_type);
-    ctrlbus_sink_put_u32(sink, a->base_radius_mm_q8);
-    ctrlbus_sink_put_u8(sink, a->motor_type);
-    ctrlbus_sink_put_u8(sink, a->sensor_num);
-    put_positions(sink, a->sensors);
-    ctrlbus_sink_put_u8(sink, a->bumper_num);
-    put_positions(sink, a->bumpers);
-}
+const ctrlbus_codec_field_t ctrlbus_codec_get_base_conf_layout[] = {
+    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_base_conf_answer_t, base_type)},
+    {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_get_base_conf_answer_t, base_radius_mm_q8)},
+    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_base_conf_answer_t, motor_type)},
+    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_base_conf_answer_t, sensor_num)},
+    /* a position is four 32-bit words: the slots are one run of words */
+    {FIELD_U32, POSITION_WORDS, (uint8_t)offsetof(ctrlbus_get_base_conf_answer_t, sensors)},
+    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_base_conf_answer_t, bumper_num)},
+    {FIELD_U32, POSITION_WORDS, (uint8_t)offsetof(ctrlbus_get_base_conf_answer_t, bumpers)},
+    {FIELD_END, 0, 0},
+};
 
 void ctrlbus_get_base_conf_answer_put(ctrlbus_sink_t *sink, const ctrlbus_get_base_conf_answer_t *a)
 {
-    put_checked(sink, ctrlbus_get_base_conf_answer_size(a), ctrlbus_codec_get_base_conf_fields, a);
+    put_checked(sink, ctrlbus_get_base_conf_answer_size(a), ctrlbus_codec_get_base_conf_layout, a);
 }
 
 int32_t ctrlbus_get_base_conf_answer_write(ctrlbus_sink_t *sink,
@@ -335,7 +363,7 @@ int32_t ctrlbus_get_base_conf_answer_write(ctrlbus_sink_t *sink,
                                            ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, ctrlbus_get_base_conf_answer_size(a),
-                                  ctrlbus_codec_get_base_conf_fields, a, type);
+                                  ctrlbus_codec_get_base_conf_layout, a, type);
 }
 
 /* GET_BASE_CONF_ADV */
@@ -345,16 +373,15 @@ static int32_t get_base_conf_adv_size(const ctrlbus_get_base_conf_adv_answer_t *
     return a != NULL ? bytes_size(a->blob, a->blob_len) : CTRLBUS_ERR_ARGUMENT;
 }
 
-void ctrlbus_codec_get_base_conf_adv_fields(ctrlbus_sink_t *sink, const void *answer)
-{
-    const ctrlbus_get_base_conf_adv_answer_t *a = answer;
-    ctrlbus_sink_put(sink, a->blob, a->blob_len);
-}
+const ctrlbus_codec_field_t ctrlbus_codec_get_base_conf_adv_layout[] = {
+    {FIELD_BYTES, 0, (uint8_t)offsetof(ctrlbus_get_base_conf_adv_answer_t, blob)},
+    {FIELD_END, 0, 0},
+};
 
 void ctrlbus_get_base_conf_adv_answer_put(ctrlbus_sink_t *sink,
                                           const ctrlbus_get_base_conf_adv_answer_t *a)
 {
-    put_checked(sink, get_base_conf_adv_size(a), ctrlbus_codec_get_base_conf_adv_fields, a);
+    put_checked(sink, get_base_conf_adv_size(a), ctrlbus_codec_get_base_conf_adv_layout, a);
 }
 
 int32_t ctrlbus_get_base_conf_adv_answer_write(ctrlbus_sink_t *sink,
@@ -362,23 +389,22 @@ int32_t ctrlbus_get_base_conf_adv_answer_write(ctrlbus_sink_t *sink,
                                                ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, get_base_conf_adv_size(a),
-                                  ctrlbus_codec_get_base_conf_adv_fields, a, type);
+                                  ctrlbus_codec_get_base_conf_adv_layout, a, type);
 }
 
 /* GET_BASE_STATUS */
 
-void ctrlbus_codec_get_base_status_fields(ctrlbus_sink_t *sink, const void *answer)
-{
-    const ctrlbus_get_base_status_answer_t *a = answer;
-    ctrlbus_sink_put_u8(sink, a->battery_percent);
-    ctrlbus_sink_put_u8(sink, a->power_status);
-}
+const ctrlbus_codec_field_t ctrlbus_codec_get_base_status_layout[] = {
+    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_base_status_answer_t, battery_percent)},
+    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_base_status_answer_t, power_status)},
+    {FIELD_END, 0, 0},
+};
 
 void ctrlbus_get_base_status_answer_put(ctrlbus_sink_t *sink,
                                         const ctrlbus_get_base_status_answer_t *a)
 {
     put_checked(sink, fixed_size(a, CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE),
-                ctrlbus_codec_get_base_status_fields, a);
+                ctrlbus_codec_get_base_status_layout, a);
 }
 
 int32_t ctrlbus_get_base_status_answer_write(ctrlbus_sink_t *sink,
@@ -386,24 +412,23 @@ int32_t ctrlbus_get_base_status_answer_write(ctrlbus_sink_t *sink,
                                              ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, fixed_size(a, CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE),
-                                  ctrlbus_codec_get_base_status_fields, a, type);
+                                  ctrlbus_codec_get_base_status_layout, a, type);
 }
 
 /* GET_BASE_MOTOR_DATA */
 
-void ctrlbus_codec_get_base_motor_data_fields(ctrlbus_sink_t *sink, const void *answer)
-{
-    const ctrlbus_get_base_motor_data_answer_t *a = answer;
-    ctrlbus_sink_put_s32(sink, a->left_distance_mm);
-    ctrlbus_sink_put_s32(sink, a->right_distance_mm);
-    ctrlbus_sink_put_u8(sink, a->status);
-}
+const ctrlbus_codec_field_t ctrlbus_codec_get_base_motor_data_layout[] = {
+    {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_get_base_motor_data_answer_t, left_distance_mm)},
+    {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_get_base_motor_data_answer_t, right_distance_mm)},
+    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_base_motor_data_answer_t, status)},
+    {FIELD_END, 0, 0},
+};
 
 void ctrlbus_get_base_motor_data_answer_put(ctrlbus_sink_t *sink,
                                             const ctrlbus_get_base_motor_data_answer_t *a)
 {
     put_checked(sink, fixed_size(a, CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE),
-                ctrlbus_codec_get_base_motor_data_fields, a);
+                ctrlbus_codec_get_base_motor_data_layout, a);
 }
 
 int32_t ctrlbus_get_base_motor_data_answer_write(ctrlbus_sink_t *sink,
@@ -411,24 +436,21 @@ int32_t ctrlbus_get_base_motor_data_answer_write(ctrlbus_sink_t *sink,
                                                  ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, fixed_size(a, CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE),
-                                  ctrlbus_codec_get_base_motor_data_fields, a, type);
+                                  ctrlbus_codec_get_base_motor_data_layout, a, type);
 }
 
 /* GET_BASE_SENSOR_DATA */
 
-void ctrlbus_codec_get_base_sensor_data_fields(ctrlbus_sink_t *sink, const void *answer)
-{
-    const ctrlbus_get_base_sensor_data_answer_t *a = answer;
-    for (size_t i = 0; i < CTRLBUS_SENSOR_CHANNELS; i++) {
-        ctrlbus_sink_put_u32(sink, a->distances_mm_q16[i]);
-    }
-}
+const ctrlbus_codec_field_t ctrlbus_codec_get_base_sensor_data_layout[] = {
+    {FIELD_U32, CTRLBUS_SENSOR_CHANNELS, (uint8_t)offsetof(ctrlbus_get_base_sensor_data_answer_t, distances_mm_q16)},
+    {FIELD_END, 0, 0},
+};
 
 void ctrlbus_get_base_sensor_data_answer_put(ctrlbus_sink_t *sink,
                                              const ctrlbus_get_base_sensor_data_answer_t *a)
 {
     put_checked(sink, fixed_size(a, CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE),
-                ctrlbus_codec_get_base_sensor_data_fields, a);
+                ctrlbus_codec_get_base_sensor_data_layout, a);
 }
 
 int32_t ctrlbus_get_base_sensor_data_answer_write(ctrlbus_sink_t *sink,
@@ -436,7 +458,7 @@ int32_t ctrlbus_get_base_sensor_data_answer_write(ctrlbus_sink_t *sink,
                                                   ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, fixed_size(a, CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE),
-                                  ctrlbus_codec_get_base_sensor_data_fields, a, type);
+                                  ctrlbus_codec_get_base_sensor_data_layout, a, type);
 }
 
 /* GET_BASE_BUMPER_DATA */
@@ -453,19 +475,17 @@ int32_t ctrlbus_get_base_bumper_data_answer_size(const ctrlbus_get_base_bumper_d
     return a->payload_size;
 }
 
-void ctrlbus_codec_get_base_bumper_data_fields(ctrlbus_sink_t *sink, const void *answer)
-{
-    const ctrlbus_get_base_bumper_data_answer_t *a = answer;
-    for (uint8_t i = 0; i < a->payload_size; i++) {
-        ctrlbus_sink_put_u8(sink, (uint8_t)((a->bitmap >> (8u * i)) & 0xFFu));
-    }
-}
+const ctrlbus_codec_field_t ctrlbus_codec_get_base_bumper_data_layout[] = {
+    /* payload_size (1..4) low bytes of the bitmap: the size cuts the word short */
+    {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_get_base_bumper_data_answer_t, bitmap)},
+    {FIELD_END, 0, 0},
+};
 
 void ctrlbus_get_base_bumper_data_answer_put(ctrlbus_sink_t *sink,
                                              const ctrlbus_get_base_bumper_data_answer_t *a)
 {
     put_checked(sink, ctrlbus_get_base_bumper_data_answer_size(a),
-                ctrlbus_codec_get_base_bumper_data_fields, a);
+                ctrlbus_codec_get_base_bumper_data_layout, a);
 }
 
 int32_t ctrlbus_get_base_bumper_data_answer_write(ctrlbus_sink_t *sink,
@@ -473,7 +493,7 @@ int32_t ctrlbus_get_base_bumper_data_answer_write(ctrlbus_sink_t *sink,
                                                   ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, ctrlbus_get_base_bumper_data_answer_size(a),
-                                  ctrlbus_codec_get_base_bumper_data_fields, a, type);
+                                  ctrlbus_codec_get_base_bumper_data_layout, a, type);
 }
 
 /* GET_CHARGER_DATA */
@@ -486,19 +506,18 @@ int32_t ctrlbus_get_charger_data_answer_size(const ctrlbus_get_charger_data_answ
     return (int32_t)CTRLBUS_GET_CHARGER_DATA_ANSWER_MIN + a->probe_count;
 }
 
-void ctrlbus_codec_get_charger_data_fields(ctrlbus_sink_t *sink, const void *answer)
-{
-    const ctrlbus_get_charger_data_answer_t *a = answer;
-    ctrlbus_sink_put_u8(sink, a->beacon_count);
-    ctrlbus_sink_put_u8(sink, a->probe_count);
-    ctrlbus_sink_put(sink, a->probes, a->probe_count);
-}
+const ctrlbus_codec_field_t ctrlbus_codec_get_charger_data_layout[] = {
+    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_charger_data_answer_t, beacon_count)},
+    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_charger_data_answer_t, probe_count)},
+    {FIELD_BYTES, 0, (uint8_t)offsetof(ctrlbus_get_charger_data_answer_t, probes)},
+    {FIELD_END, 0, 0},
+};
 
 void ctrlbus_get_charger_data_answer_put(ctrlbus_sink_t *sink,
                                          const ctrlbus_get_charger_data_answer_t *a)
 {
     put_checked(sink, ctrlbus_get_charger_data_answer_size(a),
-                ctrlbus_codec_get_charger_data_fields, a);
+                ctrlbus_codec_get_charger_data_layout, a);
 }
 
 int32_t ctrlbus_get_charger_data_answer_write(ctrlbus_sink_t *sink,
@@ -506,7 +525,7 @@ int32_t ctrlbus_get_charger_data_answer_write(ctrlbus_sink_t *sink,
                                               ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, ctrlbus_get_charger_data_answer_size(a),
-                                  ctrlbus_codec_get_charger_data_fields, a, type);
+                                  ctrlbus_codec_get_charger_data_layout, a, type);
 }
 
 /* SET_V_AND_GET_DEADRECKON */
@@ -521,23 +540,21 @@ int32_t ctrlbus_set_v_and_get_deadreckon_answer_size(
                                : CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE;
 }
 
-void ctrlbus_codec_set_v_and_get_deadreckon_fields(ctrlbus_sink_t *sink, const void *answer)
-{
-    const ctrlbus_set_v_and_get_deadreckon_answer_t *a = answer;
-    ctrlbus_sink_put_s32(sink, a->dx_mm_q16);
-    ctrlbus_sink_put_s32(sink, a->dy_mm_q16);
-    ctrlbus_sink_put_s32(sink, a->dtheta_deg_q16);
-    ctrlbus_sink_put_u8(sink, a->status);
-    if (a->has_timestamp_ms) {
-        ctrlbus_sink_put_u32(sink, a->timestamp_ms);
-    }
-}
+const ctrlbus_codec_field_t ctrlbus_codec_set_v_and_get_deadreckon_layout[] = {
+    {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_set_v_and_get_deadreckon_answer_t, dx_mm_q16)},
+    {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_set_v_and_get_deadreckon_answer_t, dy_mm_q16)},
+    {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_set_v_and_get_deadreckon_answer_t, dtheta_deg_q16)},
+    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_set_v_and_get_deadreckon_answer_t, status)},
+    /* only in the 17-byte form: the size ends the walk before it */
+    {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_set_v_and_get_deadreckon_answer_t, timestamp_ms)},
+    {FIELD_END, 0, 0},
+};
 
 void ctrlbus_set_v_and_get_deadreckon_answer_put(
     ctrlbus_sink_t *sink, const ctrlbus_set_v_and_get_deadreckon_answer_t *a)
 {
     put_checked(sink, ctrlbus_set_v_and_get_deadreckon_answer_size(a),
-                ctrlbus_codec_set_v_and_get_deadreckon_fields, a);
+                ctrlbus_codec_set_v_and_get_deadreckon_layout, a);
 }
 
 int32_t ctrlbus_set_v_and_get_deadreckon_answer_write(
@@ -545,7 +562,7 @@ int32_t ctrlbus_set_v_and_get_deadreckon_answer_write(
     ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, ctrlbus_set_v_and_get_deadreckon_answer_size(a),
-                                  ctrlbus_codec_set_v_and_get_deadreckon_fields, a, type);
+                                  ctrlbus_codec_set_v_and_get_deadreckon_layout, a, type);
 }
 
 /* POLL_BASE_CMD */
@@ -565,18 +582,16 @@ int32_t ctrlbus_poll_base_cmd_answer_size(const ctrlbus_poll_base_cmd_answer_t *
     return CTRLBUS_POLL_BASE_CMD_ANSWER_SIZE;
 }
 
-void ctrlbus_codec_poll_base_cmd_fields(ctrlbus_sink_t *sink, const void *answer)
-{
-    const ctrlbus_poll_base_cmd_answer_t *a = answer;
-    if (a->payload_size > 0) {
-        ctrlbus_sink_put_u8(sink, a->has_command ? a->command : CTRLBUS_POLL_NOTHING_PENDING);
-        ctrlbus_sink_put_u8(sink, a->pad);
-    }
-}
+const ctrlbus_codec_field_t ctrlbus_codec_poll_base_cmd_layout[] = {
+    /* payload_size 0: the size ends the walk at once */
+    {FIELD_POLL_COMMAND, 1, (uint8_t)offsetof(ctrlbus_poll_base_cmd_answer_t, has_command)},
+    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_poll_base_cmd_answer_t, pad)},
+    {FIELD_END, 0, 0},
+};
 
 void ctrlbus_poll_base_cmd_answer_put(ctrlbus_sink_t *sink, const ctrlbus_poll_base_cmd_answer_t *a)
 {
-    put_checked(sink, ctrlbus_poll_base_cmd_answer_size(a), ctrlbus_codec_poll_base_cmd_fields, a);
+    put_checked(sink, ctrlbus_poll_base_cmd_answer_size(a), ctrlbus_codec_poll_base_cmd_layout, a);
 }
 
 int32_t ctrlbus_poll_base_cmd_answer_write(ctrlbus_sink_t *sink,
@@ -584,23 +599,22 @@ int32_t ctrlbus_poll_base_cmd_answer_write(ctrlbus_sink_t *sink,
                                            ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, ctrlbus_poll_base_cmd_answer_size(a),
-                                  ctrlbus_codec_poll_base_cmd_fields, a, type);
+                                  ctrlbus_codec_poll_base_cmd_layout, a, type);
 }
 
 /* HEALTH_GET_HEALTH */
 
-void ctrlbus_codec_health_get_health_fields(ctrlbus_sink_t *sink, const void *answer)
-{
-    const ctrlbus_health_get_health_answer_t *a = answer;
-    ctrlbus_sink_put_u8(sink, a->flags);
-    ctrlbus_sink_put_u8(sink, a->error_count);
-}
+const ctrlbus_codec_field_t ctrlbus_codec_health_get_health_layout[] = {
+    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_health_get_health_answer_t, flags)},
+    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_health_get_health_answer_t, error_count)},
+    {FIELD_END, 0, 0},
+};
 
 void ctrlbus_health_get_health_answer_put(ctrlbus_sink_t *sink,
                                           const ctrlbus_health_get_health_answer_t *a)
 {
     put_checked(sink, fixed_size(a, CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE),
-                ctrlbus_codec_health_get_health_fields, a);
+                ctrlbus_codec_health_get_health_layout, a);
 }
 
 int32_t ctrlbus_health_get_health_answer_write(ctrlbus_sink_t *sink,
@@ -608,7 +622,7 @@ int32_t ctrlbus_health_get_health_answer_write(ctrlbus_sink_t *sink,
                                                ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, fixed_size(a, CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE),
-                                  ctrlbus_codec_health_get_health_fields, a, type);
+                                  ctrlbus_codec_health_get_health_layout, a, type);
 }
 
 /* HEALTH_GET_ERROR */
@@ -623,18 +637,17 @@ int32_t ctrlbus_health_get_error_answer_size(const ctrlbus_health_get_error_answ
     return CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE;
 }
 
-void ctrlbus_codec_health_get_error_fields(ctrlbus_sink_t *sink, const void *answer)
-{
-    const ctrlbus_health_get_error_answer_t *a = answer;
-    ctrlbus_sink_put_u32(sink, a->error_code);
-    ctrlbus_sink_put_text(sink, a->message, CTRLBUS_HEALTH_MESSAGE_LEN);
-}
+const ctrlbus_codec_field_t ctrlbus_codec_health_get_error_layout[] = {
+    {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_health_get_error_answer_t, error_code)},
+    {FIELD_TEXT, CTRLBUS_HEALTH_MESSAGE_LEN, (uint8_t)offsetof(ctrlbus_health_get_error_answer_t, message)},
+    {FIELD_END, 0, 0},
+};
 
 void ctrlbus_health_get_error_answer_put(ctrlbus_sink_t *sink,
                                          const ctrlbus_health_get_error_answer_t *a)
 {
     put_checked(sink, ctrlbus_health_get_error_answer_size(a),
-                ctrlbus_codec_health_get_error_fields, a);
+                ctrlbus_codec_health_get_error_layout, a);
 }
 
 int32_t ctrlbus_health_get_error_answer_write(ctrlbus_sink_t *sink,
@@ -642,7 +655,7 @@ int32_t ctrlbus_health_get_error_answer_write(ctrlbus_sink_t *sink,
                                               ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, ctrlbus_health_get_error_answer_size(a),
-                                  ctrlbus_codec_health_get_error_fields, a, type);
+                                  ctrlbus_codec_health_get_error_layout, a, type);
 }
 
 /* Empty OK answers and ERROR answers. */
@@ -678,62 +691,62 @@ const char *ctrlbus_answer_name(ctrlbus_answer_kind_t kind)
 }
 
 /* The OK answer's layout: its size (negative: the struct cannot be encoded) and fields writer. */
-static int32_t ok_layout(const ctrlbus_answer_t *a, ctrlbus_codec_put_fn *put)
+static int32_t ok_layout(const ctrlbus_answer_t *a, ctrlbus_codec_layout_t *layout)
 {
-    *put = NULL;
+    *layout = NULL;
     if (codec_has_empty_ok(a->to)) {
         return 0;
     }
     switch (a->to) {
     case CTRLBUS_REQ_CONNECT_BASE:
-        *put = ctrlbus_codec_connect_base_fields;
+        *layout = ctrlbus_codec_connect_base_layout;
         return ctrlbus_connect_base_answer_size(&a->as.connect_base);
     case CTRLBUS_REQ_GET_BASE_CONF:
-        *put = ctrlbus_codec_get_base_conf_fields;
+        *layout = ctrlbus_codec_get_base_conf_layout;
         return ctrlbus_get_base_conf_answer_size(&a->as.get_base_conf);
     case CTRLBUS_REQ_GET_BASE_CONF_ADV:
-        *put = ctrlbus_codec_get_base_conf_adv_fields;
+        *layout = ctrlbus_codec_get_base_conf_adv_layout;
         return get_base_conf_adv_size(&a->as.get_base_conf_adv);
     case CTRLBUS_REQ_GET_BASE_STATUS:
-        *put = ctrlbus_codec_get_base_status_fields;
+        *layout = ctrlbus_codec_get_base_status_layout;
         return CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE;
     case CTRLBUS_REQ_GET_BASE_MOTOR_DATA:
-        *put = ctrlbus_codec_get_base_motor_data_fields;
+        *layout = ctrlbus_codec_get_base_motor_data_layout;
         return CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE;
     case CTRLBUS_REQ_GET_BASE_SENSOR_DATA:
-        *put = ctrlbus_codec_get_base_sensor_data_fields;
+        *layout = ctrlbus_codec_get_base_sensor_data_layout;
         return CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE;
     case CTRLBUS_REQ_GET_BASE_BUMPER_DATA:
-        *put = ctrlbus_codec_get_base_bumper_data_fields;
+        *layout = ctrlbus_codec_get_base_bumper_data_layout;
         return ctrlbus_get_base_bumper_data_answer_size(&a->as.get_base_bumper_data);
     case CTRLBUS_REQ_GET_CHARGER_DATA:
-        *put = ctrlbus_codec_get_charger_data_fields;
+        *layout = ctrlbus_codec_get_charger_data_layout;
         return ctrlbus_get_charger_data_answer_size(&a->as.get_charger_data);
     case CTRLBUS_REQ_SET_V_AND_GET_DEADRECKON:
-        *put = ctrlbus_codec_set_v_and_get_deadreckon_fields;
+        *layout = ctrlbus_codec_set_v_and_get_deadreckon_layout;
         return ctrlbus_set_v_and_get_deadreckon_answer_size(&a->as.set_v_and_get_deadreckon);
     case CTRLBUS_REQ_POLL_BASE_CMD:
-        *put = ctrlbus_codec_poll_base_cmd_fields;
+        *layout = ctrlbus_codec_poll_base_cmd_layout;
         return ctrlbus_poll_base_cmd_answer_size(&a->as.poll_base_cmd);
     case CTRLBUS_REQ_HEALTH_GET_HEALTH:
-        *put = ctrlbus_codec_health_get_health_fields;
+        *layout = ctrlbus_codec_health_get_health_layout;
         return CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE;
     case CTRLBUS_REQ_HEALTH_GET_ERROR:
-        *put = ctrlbus_codec_health_get_error_fields;
+        *layout = ctrlbus_codec_health_get_error_layout;
         return ctrlbus_health_get_error_answer_size(&a->as.health_get_error);
     default: return CTRLBUS_ERR_ARGUMENT; /* SYNC, ECHO, GET_AUXILIARY_ANCHOR: no OK layout */
     }
 }
 
 /* Size of an answer of any kind, and (for a non-empty OK payload) its fields writer. */
-static int32_t answer_layout(const ctrlbus_answer_t *answer, ctrlbus_codec_put_fn *put)
+static int32_t answer_layout(const ctrlbus_answer_t *answer, ctrlbus_codec_layout_t *layout)
 {
-    *put = NULL;
+    *layout = NULL;
     if (answer == NULL) {
         return CTRLBUS_ERR_ARGUMENT;
     }
     switch (answer->kind) {
-    case CTRLBUS_ANSWER_OK: return ok_layout(answer, put);
+    case CTRLBUS_ANSWER_OK: return ok_layout(answer, layout);
     case CTRLBUS_ANSWER_ERROR: return CTRLBUS_ERROR_ANSWER_SIZE;
     case CTRLBUS_ANSWER_INVALID: return 0;
     case CTRLBUS_ANSWER_SYNC:
@@ -745,8 +758,8 @@ static int32_t answer_layout(const ctrlbus_answer_t *answer, ctrlbus_codec_put_f
 
 int32_t ctrlbus_answer_payload_size(const ctrlbus_answer_t *answer)
 {
-    ctrlbus_codec_put_fn put;
-    return answer_layout(answer, &put);
+    ctrlbus_codec_layout_t layout;
+    return answer_layout(answer, &layout);
 }
 
 int32_t ctrlbus_answer_write(ctrlbus_sink_t *sink, const ctrlbus_answer_t *answer,
@@ -757,8 +770,8 @@ int32_t ctrlbus_answer_write(ctrlbus_sink_t *sink, const ctrlbus_answer_t *answe
         [CTRLBUS_ANSWER_INVALID] = CTRLBUS_CMD_INVALID, [CTRLBUS_ANSWER_SYNC] = CTRLBUS_CMD_SYNC,
         [CTRLBUS_ANSWER_ECHO] = CTRLBUS_CMD_ECHO,
     };
-    ctrlbus_codec_put_fn put;
-    int32_t size = answer_layout(answer, &put);
+    ctrlbus_codec_layout_t layout;
+    int32_t size = answer_layout(answer, &layout);
     if (size < 0) {
         return size;
     }
@@ -768,8 +781,8 @@ int32_t ctrlbus_answer_write(ctrlbus_sink_t *sink, const ctrlbus_answer_t *answe
     }
     switch (answer->kind) {
     case CTRLBUS_ANSWER_OK:
-        if (put != NULL) {
-            put(sink, &answer->as);
+        if (layout != NULL) {
+            ctrlbus_codec_put_fields(sink, layout, &answer->as, (size_t)size);
         }
         break;
     case CTRLBUS_ANSWER_ERROR: ctrlbus_sink_put_u16(sink, answer->as.error.error_code); break;
