@@ -72,6 +72,18 @@ static inline bool codec_has_empty_ok(ctrlbus_req_kind_t kind)
            kind == CTRLBUS_REQ_BASE_CMD;
 }
 
+/* ---- the control-bus requests: how each travels in a CMD 0xF8 payload (messages.c) ---------- */
+
+typedef struct {
+    uint8_t kind; /* ctrlbus_req_kind_t */
+    uint8_t code;
+    uint8_t subcommand; /* HEALTH_MGMT only */
+    uint8_t size;       /* whole payload, code (and sub-command) included */
+} ctrlbus_codec_request_layout_t;
+
+#define CTRLBUS_CODEC_REQUEST_LAYOUTS 17u
+extern const ctrlbus_codec_request_layout_t ctrlbus_codec_request_layouts[CTRLBUS_CODEC_REQUEST_LAYOUTS];
+
 /* ---- writing answers: what messages.c shares with the base stack --------------------------- */
 
 /* An answer layout: its fields in wire order, each read from the answer struct at `offset`:

@@ -75,113 +75,83 @@ uint16_t ctrlbus_request_error_code(const ctrlbus_request_t *request, int32_t er
     return CTRLBUS_WIRE_ERR_UNSUPPORTED;
 }
 
-/* Sets the request's kind and checks its payload length: CTRLBUS_OK or CTRLBUS_ERR_FORMAT. */
-static int32_t expect(ctrlbus_request_t *out, ctrlbus_req_kind_t kind, size_t len, size_t size)
-{
-    out->kind = kind;
-    return len == size ? CTRLBUS_OK : CTRLBUS_ERR_FORMAT;
-}
+/* The control-bus requests (codec.h): decoding finds a request here, encoding its code. */
+const ctrlbus_codec_request_layout_t ctrlbus_codec_request_layouts[CTRLBUS_CODEC_REQUEST_LAYOUTS] = {
+    {CTRLBUS_REQ_CONNECT_BASE, CTRLBUS_CODE_CONNECT_BASE, 0, CTRLBUS_CONNECT_BASE_REQUEST_SIZE},
+    {CTRLBUS_REQ_GET_BASE_CONF, CTRLBUS_CODE_GET_BASE_CONF, 0, CTRLBUS_PLAIN_REQUEST_SIZE},
+    {CTRLBUS_REQ_GET_BASE_CONF_ADV, CTRLBUS_CODE_GET_BASE_CONF_ADV, 0, CTRLBUS_PLAIN_REQUEST_SIZE},
+    {CTRLBUS_REQ_GET_BASE_STATUS, CTRLBUS_CODE_GET_BASE_STATUS, 0, CTRLBUS_PLAIN_REQUEST_SIZE},
+    {CTRLBUS_REQ_GET_BASE_MOTOR_DATA, CTRLBUS_CODE_GET_BASE_MOTOR_DATA, 0,
+     CTRLBUS_PLAIN_REQUEST_SIZE},
+    {CTRLBUS_REQ_GET_BASE_SENSOR_DATA, CTRLBUS_CODE_GET_BASE_SENSOR_DATA, 0,
+     CTRLBUS_PLAIN_REQUEST_SIZE},
+    {CTRLBUS_REQ_GET_BASE_BUMPER_DATA, CTRLBUS_CODE_GET_BASE_BUMPER_DATA, 0,
+     CTRLBUS_PLAIN_REQUEST_SIZE},
+    {CTRLBUS_REQ_GET_CHARGER_DATA, CTRLBUS_CODE_GET_CHARGER_DATA, 0,
+     CTRLBUS_GET_CHARGER_DATA_REQUEST_SIZE},
+    {CTRLBUS_REQ_GET_AUXILIARY_ANCHOR, CTRLBUS_CODE_GET_AUXILIARY_ANCHOR, 0,
+     CTRLBUS_PLAIN_REQUEST_SIZE},
+    {CTRLBUS_REQ_SET_BASE_MOTOR, CTRLBUS_CODE_SET_BASE_MOTOR, 0,
+     CTRLBUS_SET_BASE_MOTOR_REQUEST_SIZE},
+    {CTRLBUS_REQ_SET_V_AND_GET_DEADRECKON, CTRLBUS_CODE_SET_V_AND_GET_DEADRECKON, 0,
+     CTRLBUS_SET_V_AND_GET_DEADRECKON_REQUEST_SIZE},
+    {CTRLBUS_REQ_POLL_BASE_CMD, CTRLBUS_CODE_POLL_BASE_CMD, 0, CTRLBUS_PLAIN_REQUEST_SIZE},
+    {CTRLBUS_REQ_POLL_BASE_ANS_CMD, CTRLBUS_CODE_POLL_BASE_ANS_CMD, 0, CTRLBUS_PLAIN_REQUEST_SIZE},
+    {CTRLBUS_REQ_SEND_EVENT, CTRLBUS_CODE_SEND_EVENT, 0, CTRLBUS_SEND_EVENT_REQUEST_SIZE},
+    {CTRLBUS_REQ_HEALTH_GET_HEALTH, CTRLBUS_CODE_HEALTH_MGMT, CTRLBUS_HEALTH_SUB_GET_HEALTH,
+     CTRLBUS_HEALTH_GET_HEALTH_REQUEST_SIZE},
+    {CTRLBUS_REQ_HEALTH_GET_ERROR, CTRLBUS_CODE_HEALTH_MGMT, CTRLBUS_HEALTH_SUB_GET_ERROR,
+     CTRLBUS_HEALTH_GET_ERROR_REQUEST_SIZE},
+    {CTRLBUS_REQ_HEALTH_CLR_ERROR, CTRLBUS_CODE_HEALTH_MGMT, CTRLBUS_HEALTH_SUB_CLR_ERROR,
+     CTRLBUS_HEALTH_CLR_ERROR_REQUEST_SIZE},
+};
 
 static int32_t supported_if(bool known)
 {
     return known ? CTRLBUS_OK : CTRLBUS_ERR_UNSUPPORTED;
 }
 
-/* HEALTH_MGMT: the sub-command (payload[1]) picks the request; len >= 2. */
-static int32_t decode_health(ctrlbus_request_t *out, const uint8_t *payload, size_t len)
-{
-    const uint8_t *args = payload + 2;
-    int32_t result;
-    switch (payload[1]) {
-    case CTRLBUS_HEALTH_SUB_GET_HEALTH:
-        return expect(out, CTRLBUS_REQ_HEALTH_GET_HEALTH, len,
-                      CTRLBUS_HEALTH_GET_HEALTH_REQUEST_SIZE);
-    case CTRLBUS_HEALTH_SUB_GET_ERROR:
-        result = expect(out, CTRLBUS_REQ_HEALTH_GET_ERROR, len,
-                        CTRLBUS_HEALTH_GET_ERROR_REQUEST_SIZE);
-        if (result == CTRLBUS_OK) {
-            out->as.health_get_error.index = codec_take_u8(&args);
-        }
-        return result;
-    case CTRLBUS_HEALTH_SUB_CLR_ERROR:
-        result = expect(out, CTRLBUS_REQ_HEALTH_CLR_ERROR, len,
-                        CTRLBUS_HEALTH_CLR_ERROR_REQUEST_SIZE);
-        if (result == CTRLBUS_OK) {
-            out->as.health_clr_error.error_code = codec_take_u32(&args);
-        }
-        return result;
-    default: out->kind = CTRLBUS_REQ_HEALTH_UNKNOWN; return CTRLBUS_ERR_UNSUPPORTED;
-    }
-}
-
-/* A CMD 0xF8 payload: one switch on the request code finds the request, checks its length (before
- * any value: a wrong length with a bad value is a FORMAT error), reads its arguments and checks
- * their values. */
+/* A CMD 0xF8 payload: the table finds the request (HEALTH_MGMT by its sub-command too), then its
+ * length is checked (before any value: a wrong length with a bad value is a FORMAT error), its
+ * arguments read and their values checked. The arguments are one byte or a run of 32-bit words,
+ * each at the start of the request's member of out->as. */
 static int32_t decode_ctrl_bus(ctrlbus_request_t *out, const uint8_t *payload, size_t len)
 {
     if (len == 0) {
         return CTRLBUS_ERR_FORMAT; /* no request code at all */
     }
-    const uint8_t *args = payload + 1;
-    int32_t result;
-    switch (payload[0]) {
-    case CTRLBUS_CODE_CONNECT_BASE:
-        result = expect(out, CTRLBUS_REQ_CONNECT_BASE, len, CTRLBUS_CONNECT_BASE_REQUEST_SIZE);
-        if (result == CTRLBUS_OK) {
-            out->as.connect_base.protocol_version = args[0];
-            result = supported_if(codec_connect_version_known(args[0]));
+    bool health = payload[0] == CTRLBUS_CODE_HEALTH_MGMT;
+    if (health && len < 2) {
+        return CTRLBUS_ERR_FORMAT;
+    }
+    const ctrlbus_codec_request_layout_t *layout = ctrlbus_codec_request_layouts;
+    while (layout->code != payload[0] || (health && layout->subcommand != payload[1])) {
+        if (++layout == ctrlbus_codec_request_layouts + CTRLBUS_CODEC_REQUEST_LAYOUTS) {
+            /* An unknown HEALTH_MGMT sub-command is answered 0x8002, an unknown code 0x8000. */
+            out->kind = health ? CTRLBUS_REQ_HEALTH_UNKNOWN : CTRLBUS_REQ_NONE;
+            return CTRLBUS_ERR_UNSUPPORTED;
         }
-        return result;
-    case CTRLBUS_CODE_GET_BASE_CONF:
-        return expect(out, CTRLBUS_REQ_GET_BASE_CONF, len, CTRLBUS_PLAIN_REQUEST_SIZE);
-    case CTRLBUS_CODE_GET_BASE_CONF_ADV:
-        return expect(out, CTRLBUS_REQ_GET_BASE_CONF_ADV, len, CTRLBUS_PLAIN_REQUEST_SIZE);
-    case CTRLBUS_CODE_GET_BASE_STATUS:
-        return expect(out, CTRLBUS_REQ_GET_BASE_STATUS, len, CTRLBUS_PLAIN_REQUEST_SIZE);
-    case CTRLBUS_CODE_GET_BASE_MOTOR_DATA:
-        return expect(out, CTRLBUS_REQ_GET_BASE_MOTOR_DATA, len, CTRLBUS_PLAIN_REQUEST_SIZE);
-    case CTRLBUS_CODE_GET_BASE_SENSOR_DATA:
-        return expect(out, CTRLBUS_REQ_GET_BASE_SENSOR_DATA, len, CTRLBUS_PLAIN_REQUEST_SIZE);
-    case CTRLBUS_CODE_GET_BASE_BUMPER_DATA:
-        return expect(out, CTRLBUS_REQ_GET_BASE_BUMPER_DATA, len, CTRLBUS_PLAIN_REQUEST_SIZE);
-    case CTRLBUS_CODE_GET_CHARGER_DATA:
-        result = expect(out, CTRLBUS_REQ_GET_CHARGER_DATA, len,
-                        CTRLBUS_GET_CHARGER_DATA_REQUEST_SIZE);
-        if (result == CTRLBUS_OK) {
-            out->as.get_charger_data.data_type = args[0];
-            result = supported_if(codec_charger_type_known(args[0]));
-        }
-        return result;
-    case CTRLBUS_CODE_GET_AUXILIARY_ANCHOR:
-        return expect(out, CTRLBUS_REQ_GET_AUXILIARY_ANCHOR, len, CTRLBUS_PLAIN_REQUEST_SIZE);
-    case CTRLBUS_CODE_SET_BASE_MOTOR:
-        result = expect(out, CTRLBUS_REQ_SET_BASE_MOTOR, len, CTRLBUS_SET_BASE_MOTOR_REQUEST_SIZE);
-        for (size_t i = 0; result == CTRLBUS_OK && i < CTRLBUS_MOTOR_SPEEDS; i++) {
-            out->as.set_base_motor.speeds_mm_s[i] = codec_take_s32(&args);
-        }
-        return result;
-    case CTRLBUS_CODE_SET_V_AND_GET_DEADRECKON:
-        result = expect(out, CTRLBUS_REQ_SET_V_AND_GET_DEADRECKON, len,
-                        CTRLBUS_SET_V_AND_GET_DEADRECKON_REQUEST_SIZE);
-        if (result == CTRLBUS_OK) {
-            out->as.set_v_and_get_deadreckon.vx_mps_q16 = codec_take_s32(&args);
-            out->as.set_v_and_get_deadreckon.vy_mps_q16 = codec_take_s32(&args);
-            out->as.set_v_and_get_deadreckon.omega_radps_q16 = codec_take_s32(&args);
-        }
-        return result;
-    case CTRLBUS_CODE_POLL_BASE_CMD:
-        return expect(out, CTRLBUS_REQ_POLL_BASE_CMD, len, CTRLBUS_PLAIN_REQUEST_SIZE);
-    case CTRLBUS_CODE_POLL_BASE_ANS_CMD:
-        return expect(out, CTRLBUS_REQ_POLL_BASE_ANS_CMD, len, CTRLBUS_PLAIN_REQUEST_SIZE);
-    case CTRLBUS_CODE_SEND_EVENT:
-        result = expect(out, CTRLBUS_REQ_SEND_EVENT, len, CTRLBUS_SEND_EVENT_REQUEST_SIZE);
-        if (result == CTRLBUS_OK) {
-            out->as.send_event.event = args[0];
-        }
-        return result;
-    case CTRLBUS_CODE_HEALTH_MGMT:
-        return len < 2 ? CTRLBUS_ERR_FORMAT : decode_health(out, payload, len);
-    default: return CTRLBUS_ERR_UNSUPPORTED; /* out->kind stays CTRLBUS_REQ_NONE */
+    }
+    out->kind = (ctrlbus_req_kind_t)layout->kind;
+    if (len != layout->size) {
+        return CTRLBUS_ERR_FORMAT;
+    }
+    const uint8_t *args = payload + (health ? 2 : 1);
+    size_t args_len = len - (health ? 2u : 1u);
+    if (args_len == 1u) {
+        *(uint8_t *)(void *)&out->as = args[0];
+    }
+    /* int32_t and uint32_t words alike: int32_t is two's complement by definition */
+    uint32_t *words = (uint32_t *)(void *)&out->as;
+    for (size_t i = 0; i < args_len / 4u; i++) {
+        words[i] = codec_take_u32(&args);
+    }
+    switch (out->kind) {
+    case CTRLBUS_REQ_CONNECT_BASE:
+        return supported_if(codec_connect_version_known(out->as.connect_base.protocol_version));
+    case CTRLBUS_REQ_GET_CHARGER_DATA:
+        return supported_if(codec_charger_type_known(out->as.get_charger_data.data_type));
+    default: return CTRLBUS_OK;
     }
 }
 
@@ -203,14 +173,13 @@ int32_t ctrlbus_request_decode(ctrlbus_request_t *out, uint8_t cmd, const uint8_
         out->as.echo.data = payload;
         out->as.echo.data_len = len;
         return CTRLBUS_OK;
-    case CTRLBUS_CMD_BASE_CMD: {
-        int32_t result = expect(out, CTRLBUS_REQ_BASE_CMD, len, CTRLBUS_BASE_CMD_REQUEST_SIZE);
-        if (result == CTRLBUS_OK) {
-            out->as.base_cmd.subcommand = payload[0];
-            result = supported_if(codec_base_cmd_known(payload[0]));
+    case CTRLBUS_CMD_BASE_CMD:
+        out->kind = CTRLBUS_REQ_BASE_CMD;
+        if (len != CTRLBUS_BASE_CMD_REQUEST_SIZE) {
+            return CTRLBUS_ERR_FORMAT;
         }
-        return result;
-    }
+        out->as.base_cmd.subcommand = payload[0];
+        return supported_if(codec_base_cmd_known(payload[0]));
     case CTRLBUS_CMD_CTRL_BUS: return decode_ctrl_bus(out, payload, len);
     default: return CTRLBUS_ERR_UNSUPPORTED;
     }
