@@ -672,7 +672,7 @@ static uint16_t answer_filled(ctrlbus_base_t *base, const ctrlbus_request_t *req
  * yet then). */
 static uint16_t answer_request(ctrlbus_base_t *base, const ctrlbus_request_t *request,
                                answer_storage_t *out, reply_t *reply, ctrlbus_sink_t *sink,
-                               uint32_t now_ms)
+                               ctrlbus_frame_type_t type, uint32_t now_ms)
 {
     const ctrlbus_base_config_t *config = base->config;
     void *context = config->context;
@@ -725,7 +725,7 @@ static uint16_t answer_request(ctrlbus_base_t *base, const ctrlbus_request_t *re
         if (hook == NULL) {
             return CTRLBUS_WIRE_ERR_UNSUPPORTED;
         }
-        (void)ctrlbus_codec_write_ok(sink, 0, NULL, NULL, answer_type(base));
+        (void)ctrlbus_codec_write_ok(sink, 0, NULL, NULL, type);
         if (reboot) {
             restart(base, now_ms); /* what a handler that returns (a host base) finds */
         }
@@ -740,7 +740,7 @@ static uint16_t answer_request(ctrlbus_base_t *base, const ctrlbus_request_t *re
 /* Decodes a request, runs it and writes its one answer (OK, ERROR, or the SYNC/ECHO copy), or
  * writes the ERROR for a decoder event (rx not CTRLBUS_RX_FRAME): the one place answers leave. */
 static void answer(ctrlbus_base_t *base, ctrlbus_rx_t rx, const ctrlbus_frame_t *frame,
-                   uint32_t now_ms, ctrlbus_sink_t *sink)
+                   uint32_t now_ms, ctrlbus_sink_t *sink, ctrlbus_frame_type_t type)
 {
     uint16_t error;
     ctrlbus_request_t request;
@@ -768,7 +768,7 @@ static void answer(ctrlbus_base_t *base, ctrlbus_rx_t rx, const ctrlbus_frame_t 
         int32_t result =
             ctrlbus_request_decode(&request, frame->cmd, frame->payload, frame->payload_len);
         error = result < 0 ? ctrlbus_request_error_code(&request, result)
-                           : answer_request(base, &request, &out, &reply, sink, now_ms);
+                           : answer_request(base, &request, &out, &reply, sink, type, now_ms);
         if (error == ALREADY_ANSWERED) {
             return;
         }
@@ -779,7 +779,6 @@ static void answer(ctrlbus_base_t *base, ctrlbus_rx_t rx, const ctrlbus_frame_t 
         }
     }
     /* A write callback's failure cuts an answer short; there is nothing more to say. */
-    ctrlbus_frame_type_t type = answer_type(base);
     if (error != 0u) {
         (void)ctrlbus_error_answer_write(sink, error, type);
     } else {
@@ -795,9 +794,10 @@ static unsigned drain(ctrlbus_base_t *base, uint32_t now_ms)
     (void)ctrlbus_sink_init(&sink, config->write, config->write_context);
     unsigned results = 0;
     ctrlbus_frame_t frame;
+    ctrlbus_frame_type_t type = answer_type(base);
     for (ctrlbus_rx_t rx; (rx = ctrlbus_decoder_next(&base->decoder, &frame)) != CTRLBUS_RX_NONE;) {
         results++;
-        answer(base, rx, &frame, now_ms, &sink);
+        answer(base, rx, &frame, now_ms, &sink, type);
     }
     return results;
 }
