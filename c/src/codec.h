@@ -12,6 +12,18 @@
 
 #include "ctrlbus/messages.h"
 
+/* The codec's constant tables live in flash. Every other target reads flash with ordinary loads;
+ * an AVR keeps plain `const` data in its scarce RAM, so there they are PROGMEM and each byte is
+ * read with pgm_read_byte. Read table bytes only through CODEC_ROM_BYTE. */
+#if defined(__AVR__)
+#include <avr/pgmspace.h>
+#define CODEC_ROM PROGMEM
+#define CODEC_ROM_BYTE(address) pgm_read_byte(address)
+#else
+#define CODEC_ROM
+#define CODEC_ROM_BYTE(address) (*(address))
+#endif
+
 /* ---- reading fields: callers check the payload length first ---------------------------------- */
 
 static inline uint8_t codec_take_u8(const uint8_t **p)
@@ -82,7 +94,8 @@ typedef struct {
 } ctrlbus_codec_request_layout_t;
 
 #define CTRLBUS_CODEC_REQUEST_LAYOUTS 17u
-extern const ctrlbus_codec_request_layout_t ctrlbus_codec_request_layouts[CTRLBUS_CODEC_REQUEST_LAYOUTS];
+extern const ctrlbus_codec_request_layout_t ctrlbus_codec_request_layouts[CTRLBUS_CODEC_REQUEST_LAYOUTS]
+    CODEC_ROM;
 
 /* ---- writing answers: what messages.c shares with the base stack --------------------------- */
 
@@ -119,17 +132,17 @@ int32_t ctrlbus_codec_write_ok(ctrlbus_sink_t *sink, int32_t size, ctrlbus_codec
                                const void *answer, ctrlbus_frame_type_t type);
 
 /* Each answer's layout (messages.c). */
-extern const ctrlbus_codec_field_t ctrlbus_codec_connect_base_layout[];
-extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_conf_layout[];
-extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_conf_adv_layout[];
-extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_status_layout[];
-extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_motor_data_layout[];
-extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_sensor_data_layout[];
-extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_bumper_data_layout[];
-extern const ctrlbus_codec_field_t ctrlbus_codec_get_charger_data_layout[];
-extern const ctrlbus_codec_field_t ctrlbus_codec_set_v_and_get_deadreckon_layout[];
-extern const ctrlbus_codec_field_t ctrlbus_codec_poll_base_cmd_layout[];
-extern const ctrlbus_codec_field_t ctrlbus_codec_health_get_health_layout[];
-extern const ctrlbus_codec_field_t ctrlbus_codec_health_get_error_layout[];
+extern const ctrlbus_codec_field_t ctrlbus_codec_connect_base_layout[] CODEC_ROM;
+extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_conf_layout[] CODEC_ROM;
+extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_conf_adv_layout[] CODEC_ROM;
+extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_status_layout[] CODEC_ROM;
+extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_motor_data_layout[] CODEC_ROM;
+extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_sensor_data_layout[] CODEC_ROM;
+extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_bumper_data_layout[] CODEC_ROM;
+extern const ctrlbus_codec_field_t ctrlbus_codec_get_charger_data_layout[] CODEC_ROM;
+extern const ctrlbus_codec_field_t ctrlbus_codec_set_v_and_get_deadreckon_layout[] CODEC_ROM;
+extern const ctrlbus_codec_field_t ctrlbus_codec_poll_base_cmd_layout[] CODEC_ROM;
+extern const ctrlbus_codec_field_t ctrlbus_codec_health_get_health_layout[] CODEC_ROM;
+extern const ctrlbus_codec_field_t ctrlbus_codec_health_get_error_layout[] CODEC_ROM;
 
 #endif

@@ -76,7 +76,8 @@ uint16_t ctrlbus_request_error_code(const ctrlbus_request_t *request, int32_t er
 }
 
 /* The control-bus requests (codec.h): decoding finds a request here, encoding its code. */
-const ctrlbus_codec_request_layout_t ctrlbus_codec_request_layouts[CTRLBUS_CODEC_REQUEST_LAYOUTS] = {
+const ctrlbus_codec_request_layout_t ctrlbus_codec_request_layouts[CTRLBUS_CODEC_REQUEST_LAYOUTS]
+    CODEC_ROM = {
     {CTRLBUS_REQ_CONNECT_BASE, CTRLBUS_CODE_CONNECT_BASE, 0, CTRLBUS_CONNECT_BASE_REQUEST_SIZE},
     {CTRLBUS_REQ_GET_BASE_CONF, CTRLBUS_CODE_GET_BASE_CONF, 0, CTRLBUS_PLAIN_REQUEST_SIZE},
     {CTRLBUS_REQ_GET_BASE_CONF_ADV, CTRLBUS_CODE_GET_BASE_CONF_ADV, 0, CTRLBUS_PLAIN_REQUEST_SIZE},
@@ -125,15 +126,16 @@ static int32_t decode_ctrl_bus(ctrlbus_request_t *out, const uint8_t *payload, s
         return CTRLBUS_ERR_FORMAT;
     }
     const ctrlbus_codec_request_layout_t *layout = ctrlbus_codec_request_layouts;
-    while (layout->code != payload[0] || (health && layout->subcommand != payload[1])) {
+    while (CODEC_ROM_BYTE(&layout->code) != payload[0] ||
+           (health && CODEC_ROM_BYTE(&layout->subcommand) != payload[1])) {
         if (++layout == ctrlbus_codec_request_layouts + CTRLBUS_CODEC_REQUEST_LAYOUTS) {
             /* An unknown HEALTH_MGMT sub-command is answered 0x8002, an unknown code 0x8000. */
             out->kind = health ? CTRLBUS_REQ_HEALTH_UNKNOWN : CTRLBUS_REQ_NONE;
             return CTRLBUS_ERR_UNSUPPORTED;
         }
     }
-    out->kind = (ctrlbus_req_kind_t)layout->kind;
-    if (len != layout->size) {
+    out->kind = (ctrlbus_req_kind_t)CODEC_ROM_BYTE(&layout->kind);
+    if (len != CODEC_ROM_BYTE(&layout->size)) {
         return CTRLBUS_ERR_FORMAT;
     }
     const uint8_t *args = payload + (health ? 2 : 1);
@@ -194,16 +196,16 @@ int32_t ctrlbus_request_decode(ctrlbus_request_t *out, uint8_t cmd, const uint8_
 void ctrlbus_codec_put_fields(ctrlbus_sink_t *sink, ctrlbus_codec_layout_t layout,
                               const void *answer, size_t size)
 {
-    for (; size > 0u && layout->kind != FIELD_END; layout++) {
-        const uint8_t *at = (const uint8_t *)answer + layout->offset;
-        uint8_t kind = layout->kind;
+    for (uint8_t kind; size > 0u && (kind = CODEC_ROM_BYTE(&layout->kind)) != FIELD_END;
+         layout++) {
+        const uint8_t *at = (const uint8_t *)answer + CODEC_ROM_BYTE(&layout->offset);
         if (kind == FIELD_BYTES) {
             ctrlbus_sink_put(sink, *(const uint8_t *const *)(const void *)at, size);
             return; /* the rest of the payload */
         }
         size_t width = kind == FIELD_U32 ? 4u : kind == FIELD_U16 ? 2u : 1u;
         bool text_ended = false;
-        for (size_t count = layout->count; count > 0u && size > 0u; count--, at += width) {
+        for (size_t count = CODEC_ROM_BYTE(&layout->count); count > 0u && size > 0u; count--, at += width) {
             uint32_t value = width == 4u   ? *(const uint32_t *)(const void *)at
                              : width == 2u ? *(const uint16_t *)(const void *)at
                                            : at[0];
@@ -277,7 +279,7 @@ int32_t ctrlbus_connect_base_answer_size(const ctrlbus_connect_base_answer_t *a)
                                           : CTRLBUS_CONNECT_BASE_ANSWER_SIZE;
 }
 
-const ctrlbus_codec_field_t ctrlbus_codec_connect_base_layout[] = {
+const ctrlbus_codec_field_t ctrlbus_codec_connect_base_layout[] CODEC_ROM = {
     {FIELD_TEXT, CTRLBUS_MODEL_LEN, (uint8_t)offsetof(ctrlbus_connect_base_answer_t, model)},
     {FIELD_U16, 1, (uint8_t)offsetof(ctrlbus_connect_base_answer_t, firmware_version)},
     {FIELD_U16, 1, (uint8_t)offsetof(ctrlbus_connect_base_answer_t, hardware_version)},
@@ -310,7 +312,7 @@ int32_t ctrlbus_get_base_conf_answer_size(const ctrlbus_get_base_conf_answer_t *
     return CTRLBUS_GET_BASE_CONF_ANSWER_SIZE;
 }
 
-const ctrlbus_codec_field_t ctrlbus_codec_get_base_conf_layout[] = {
+const ctrlbus_codec_field_t ctrlbus_codec_get_base_conf_layout[] CODEC_ROM = {
     {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_base_conf_answer_t, base_type)},
     {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_get_base_conf_answer_t, base_radius_mm_q8)},
     {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_base_conf_answer_t, motor_type)},
@@ -342,7 +344,7 @@ static int32_t get_base_conf_adv_size(const ctrlbus_get_base_conf_adv_answer_t *
     return a != NULL ? bytes_size(a->blob, a->blob_len) : CTRLBUS_ERR_ARGUMENT;
 }
 
-const ctrlbus_codec_field_t ctrlbus_codec_get_base_conf_adv_layout[] = {
+const ctrlbus_codec_field_t ctrlbus_codec_get_base_conf_adv_layout[] CODEC_ROM = {
     {FIELD_BYTES, 0, (uint8_t)offsetof(ctrlbus_get_base_conf_adv_answer_t, blob)},
     {FIELD_END, 0, 0},
 };
@@ -363,7 +365,7 @@ int32_t ctrlbus_get_base_conf_adv_answer_write(ctrlbus_sink_t *sink,
 
 /* GET_BASE_STATUS */
 
-const ctrlbus_codec_field_t ctrlbus_codec_get_base_status_layout[] = {
+const ctrlbus_codec_field_t ctrlbus_codec_get_base_status_layout[] CODEC_ROM = {
     {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_base_status_answer_t, battery_percent)},
     {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_base_status_answer_t, power_status)},
     {FIELD_END, 0, 0},
@@ -386,7 +388,7 @@ int32_t ctrlbus_get_base_status_answer_write(ctrlbus_sink_t *sink,
 
 /* GET_BASE_MOTOR_DATA */
 
-const ctrlbus_codec_field_t ctrlbus_codec_get_base_motor_data_layout[] = {
+const ctrlbus_codec_field_t ctrlbus_codec_get_base_motor_data_layout[] CODEC_ROM = {
     {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_get_base_motor_data_answer_t, left_distance_mm)},
     {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_get_base_motor_data_answer_t, right_distance_mm)},
     {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_base_motor_data_answer_t, status)},
@@ -410,7 +412,7 @@ int32_t ctrlbus_get_base_motor_data_answer_write(ctrlbus_sink_t *sink,
 
 /* GET_BASE_SENSOR_DATA */
 
-const ctrlbus_codec_field_t ctrlbus_codec_get_base_sensor_data_layout[] = {
+const ctrlbus_codec_field_t ctrlbus_codec_get_base_sensor_data_layout[] CODEC_ROM = {
     {FIELD_U32, CTRLBUS_SENSOR_CHANNELS, (uint8_t)offsetof(ctrlbus_get_base_sensor_data_answer_t, distances_mm_q16)},
     {FIELD_END, 0, 0},
 };
@@ -444,7 +446,7 @@ int32_t ctrlbus_get_base_bumper_data_answer_size(const ctrlbus_get_base_bumper_d
     return a->payload_size;
 }
 
-const ctrlbus_codec_field_t ctrlbus_codec_get_base_bumper_data_layout[] = {
+const ctrlbus_codec_field_t ctrlbus_codec_get_base_bumper_data_layout[] CODEC_ROM = {
     /* payload_size (1..4) low bytes of the bitmap: the size cuts the word short */
     {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_get_base_bumper_data_answer_t, bitmap)},
     {FIELD_END, 0, 0},
@@ -475,7 +477,7 @@ int32_t ctrlbus_get_charger_data_answer_size(const ctrlbus_get_charger_data_answ
     return (int32_t)CTRLBUS_GET_CHARGER_DATA_ANSWER_MIN + a->probe_count;
 }
 
-const ctrlbus_codec_field_t ctrlbus_codec_get_charger_data_layout[] = {
+const ctrlbus_codec_field_t ctrlbus_codec_get_charger_data_layout[] CODEC_ROM = {
     {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_charger_data_answer_t, beacon_count)},
     {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_charger_data_answer_t, probe_count)},
     {FIELD_BYTES, 0, (uint8_t)offsetof(ctrlbus_get_charger_data_answer_t, probes)},
@@ -509,7 +511,7 @@ int32_t ctrlbus_set_v_and_get_deadreckon_answer_size(
                                : CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE;
 }
 
-const ctrlbus_codec_field_t ctrlbus_codec_set_v_and_get_deadreckon_layout[] = {
+const ctrlbus_codec_field_t ctrlbus_codec_set_v_and_get_deadreckon_layout[] CODEC_ROM = {
     {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_set_v_and_get_deadreckon_answer_t, dx_mm_q16)},
     {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_set_v_and_get_deadreckon_answer_t, dy_mm_q16)},
     {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_set_v_and_get_deadreckon_answer_t, dtheta_deg_q16)},
@@ -551,7 +553,7 @@ int32_t ctrlbus_poll_base_cmd_answer_size(const ctrlbus_poll_base_cmd_answer_t *
     return CTRLBUS_POLL_BASE_CMD_ANSWER_SIZE;
 }
 
-const ctrlbus_codec_field_t ctrlbus_codec_poll_base_cmd_layout[] = {
+const ctrlbus_codec_field_t ctrlbus_codec_poll_base_cmd_layout[] CODEC_ROM = {
     /* payload_size 0: the size ends the walk at once */
     {FIELD_POLL_COMMAND, 1, (uint8_t)offsetof(ctrlbus_poll_base_cmd_answer_t, has_command)},
     {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_poll_base_cmd_answer_t, pad)},
@@ -573,7 +575,7 @@ int32_t ctrlbus_poll_base_cmd_answer_write(ctrlbus_sink_t *sink,
 
 /* HEALTH_GET_HEALTH */
 
-const ctrlbus_codec_field_t ctrlbus_codec_health_get_health_layout[] = {
+const ctrlbus_codec_field_t ctrlbus_codec_health_get_health_layout[] CODEC_ROM = {
     {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_health_get_health_answer_t, flags)},
     {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_health_get_health_answer_t, error_count)},
     {FIELD_END, 0, 0},
@@ -606,7 +608,7 @@ int32_t ctrlbus_health_get_error_answer_size(const ctrlbus_health_get_error_answ
     return CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE;
 }
 
-const ctrlbus_codec_field_t ctrlbus_codec_health_get_error_layout[] = {
+const ctrlbus_codec_field_t ctrlbus_codec_health_get_error_layout[] CODEC_ROM = {
     {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_health_get_error_answer_t, error_code)},
     {FIELD_TEXT, CTRLBUS_HEALTH_MESSAGE_LEN, (uint8_t)offsetof(ctrlbus_health_get_error_answer_t, message)},
     {FIELD_END, 0, 0},

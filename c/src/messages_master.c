@@ -59,7 +59,7 @@ static int32_t check_decode(const void *out, const uint8_t *payload, size_t len,
 static const ctrlbus_codec_request_layout_t *layout_of_kind(ctrlbus_req_kind_t kind)
 {
     for (size_t i = 0; i < CTRLBUS_CODEC_REQUEST_LAYOUTS; i++) {
-        if (ctrlbus_codec_request_layouts[i].kind == (uint8_t)kind) {
+        if (CODEC_ROM_BYTE(&ctrlbus_codec_request_layouts[i].kind) == (uint8_t)kind) {
             return &ctrlbus_codec_request_layouts[i];
         }
     }
@@ -108,7 +108,7 @@ int32_t ctrlbus_request_payload_size(const ctrlbus_request_t *request)
     case CTRLBUS_REQ_BASE_CMD: return CTRLBUS_BASE_CMD_REQUEST_SIZE;
     default: {
         const ctrlbus_codec_request_layout_t *layout = layout_of_kind(request->kind);
-        return layout != NULL ? (int32_t)layout->size : CTRLBUS_ERR_ARGUMENT;
+        return layout != NULL ? (int32_t)CODEC_ROM_BYTE(&layout->size) : CTRLBUS_ERR_ARGUMENT;
     }
     }
     if (bytes == NULL && len > 0) {
@@ -121,9 +121,10 @@ static void put_request_payload(ctrlbus_sink_t *sink, const ctrlbus_request_t *r
 {
     const ctrlbus_codec_request_layout_t *layout = layout_of_kind(request->kind);
     if (layout != NULL) {
-        ctrlbus_sink_put_u8(sink, layout->code);
-        if (layout->code == CTRLBUS_CODE_HEALTH_MGMT) {
-            ctrlbus_sink_put_u8(sink, layout->subcommand);
+        uint8_t code = CODEC_ROM_BYTE(&layout->code);
+        ctrlbus_sink_put_u8(sink, code);
+        if (code == CTRLBUS_CODE_HEALTH_MGMT) {
+            ctrlbus_sink_put_u8(sink, CODEC_ROM_BYTE(&layout->subcommand));
         }
     }
     switch (request->kind) {
