@@ -35,10 +35,9 @@
  *
  * Handlers: one callback per request (connect_info, status, ...; GET_BASE_CONF is answered from
  * the application's struct config->base_conf instead, so its 264 bytes never sit on the stack).
- * Each fills the
- * answer struct of messages.h that the stack passes in (zeroed first) and returns CTRLBUS_OK; any
- * negative value makes the answer ERROR 0x8002 (operation failed), except CTRLBUS_ERR_UNSUPPORTED,
- * which answers 0x8000. A NULL handler means "not supported": the request is answered 0x8000, as
+ * Each fills the answer struct of messages.h that the stack passes in (zeroed first) and returns
+ * CTRLBUS_OK; any negative value makes the answer ERROR 0x8002 (operation failed), except
+ * CTRLBUS_ERR_UNSUPPORTED, which answers 0x8000. A NULL handler means "not supported": the request is answered 0x8000, as
  * the protocol prescribes (docs/protocol.md §8.2 check 8). The stack has already validated the
  * request (length, argument values) and applied the velocity limits when a handler runs. Handlers
  * run inside ctrlbus_base_poll(), in the main loop; they may call the health and command-queue
@@ -128,8 +127,8 @@
  *     that takes every byte (c/examples/minimal_base/ is a complete base in one file);
  *   - per request, one handler filling the answer struct with what the robot knows. The 13
  *     requests every base must answer (docs/protocol.md §5) need connect_info, base_conf (the
- *     GET_BASE_CONF answer itself, a struct the application keeps), status, motor_data, sensor_data, bumper_data, charger_data, set_wheel_speeds and
- *     set_velocity; POLL_BASE_CMD, POLL_BASE_ANS_CMD, SEND_EVENT and HEALTH_MGMT need none;
+ *     GET_BASE_CONF answer itself, a struct the application keeps), status, motor_data,
+ *     sensor_data, bumper_data, charger_data, set_wheel_speeds and set_velocity; POLL_BASE_CMD, POLL_BASE_ANS_CMD, SEND_EVENT and HEALTH_MGMT need none;
  *   - the robot itself: driving and stopping the motors, odometry (the wheel totals of
  *     motor_data, the deadreckon deltas of set_velocity: ctrlbus/diffdrive.h helps), the local
  *     bumper safety and stall detection, and the robot's own health conditions (battery, motors,
