@@ -101,7 +101,7 @@ extern const ctrlbus_codec_request_layout_t ctrlbus_codec_request_layouts[CTRLBU
 
 /* An answer layout: its fields in wire order, each read from the answer struct at `offset`:
  * a table walked by one writer (ctrlbus_codec_put_fields) instead of one function per layout. */
-typedef enum {
+typedef enum {             /* the integer kinds first: kind <= FIELD_U32 is "an integer run" */
     FIELD_END,          /* the table's end */
     FIELD_U8,           /* `count` uint8_t (or bool) values */
     FIELD_U16,          /* `count` uint16_t values, little-endian */

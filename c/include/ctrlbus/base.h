@@ -27,8 +27,9 @@
  * field by field, straight from the application's answer struct or, for GET_BASE_CONF_ADV, from
  * the caller's constant blob. There is NO transmit buffer, and no path needs one: SYNC and ECHO
  * answers are written from the decoder's frame buffer, where the request still is. The write
- * callback receives short pieces (a header, one field) and must take all of them: a blocking UART
- * write (wait for room in the transmit register) is the simplest. Note that a blocking write holds
+ * callback receives pieces (a header, a field, a run of integer fields straight from the answer
+ * struct) and must take all of them: a blocking UART write (wait for room in the transmit
+ * register) is the simplest. Note that a blocking write holds
  * the main loop for the answer's time on the wire (23 ms for GET_BASE_CONF at 115200 baud);
  * received bytes keep arriving in the ring meanwhile, which must be large enough for them (a Core
  * sends its next request only after the answer, so a few dozen bytes are plenty; 256 is ample).
