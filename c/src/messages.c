@@ -20,6 +20,16 @@
 /* A position is four 32-bit words, and a run of positions a run of words. */
 #define POSITION_WORDS (CTRLBUS_CONF_SLOTS * 4u)
 typedef char position_is_four_words[sizeof(ctrlbus_position_t) == 16u ? 1 : -1];
+/* Runs of same-type members the layouts write as one field (no padding between them). */
+#define FOLLOWS(type, first, second, width) (offsetof(type, second) == offsetof(type, first) + (width))
+typedef char runs_are_contiguous
+    [FOLLOWS(ctrlbus_connect_base_answer_t, firmware_version, hardware_version, 2u) &&
+             FOLLOWS(ctrlbus_get_base_motor_data_answer_t, left_distance_mm, right_distance_mm, 4u) &&
+             FOLLOWS(ctrlbus_set_v_and_get_deadreckon_answer_t, dx_mm_q16, dy_mm_q16, 4u) &&
+             FOLLOWS(ctrlbus_set_v_and_get_deadreckon_answer_t, dy_mm_q16, dtheta_deg_q16, 4u)
+         ? 1
+         : -1];
+
 /* POLL_BASE_CMD's command byte follows has_command (FIELD_POLL_COMMAND reads both). */
 typedef char command_follows_flag[offsetof(ctrlbus_poll_base_cmd_answer_t, command) ==
                                           offsetof(ctrlbus_poll_base_cmd_answer_t, has_command) + 1u
@@ -300,8 +310,7 @@ int32_t ctrlbus_connect_base_answer_size(const ctrlbus_connect_base_answer_t *a)
 
 const ctrlbus_codec_field_t ctrlbus_codec_connect_base_layout[] CODEC_ROM = {
     {FIELD_TEXT, CTRLBUS_MODEL_LEN, (uint8_t)offsetof(ctrlbus_connect_base_answer_t, model)},
-    {FIELD_U16, 1, (uint8_t)offsetof(ctrlbus_connect_base_answer_t, firmware_version)},
-    {FIELD_U16, 1, (uint8_t)offsetof(ctrlbus_connect_base_answer_t, hardware_version)},
+    {FIELD_U16, 2, (uint8_t)offsetof(ctrlbus_connect_base_answer_t, firmware_version)}, /* + hw */
     {FIELD_U32, CTRLBUS_SERIAL_WORDS, (uint8_t)offsetof(ctrlbus_connect_base_answer_t, serial)},
     /* only in the 39-byte form: the size ends the walk before it */
     {FIELD_TEXT, CTRLBUS_FIRMWARE_VERSION_SUFFIX_LEN, (uint8_t)offsetof(ctrlbus_connect_base_answer_t, firmware_version_suffix)},
@@ -408,8 +417,7 @@ int32_t ctrlbus_get_base_status_answer_write(ctrlbus_sink_t *sink,
 /* GET_BASE_MOTOR_DATA */
 
 const ctrlbus_codec_field_t ctrlbus_codec_get_base_motor_data_layout[] CODEC_ROM = {
-    {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_get_base_motor_data_answer_t, left_distance_mm)},
-    {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_get_base_motor_data_answer_t, right_distance_mm)},
+    {FIELD_U32, 2, (uint8_t)offsetof(ctrlbus_get_base_motor_data_answer_t, left_distance_mm)},
     {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_base_motor_data_answer_t, status)},
     {FIELD_END, 0, 0},
 };
@@ -531,9 +539,7 @@ int32_t ctrlbus_set_v_and_get_deadreckon_answer_size(
 }
 
 const ctrlbus_codec_field_t ctrlbus_codec_set_v_and_get_deadreckon_layout[] CODEC_ROM = {
-    {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_set_v_and_get_deadreckon_answer_t, dx_mm_q16)},
-    {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_set_v_and_get_deadreckon_answer_t, dy_mm_q16)},
-    {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_set_v_and_get_deadreckon_answer_t, dtheta_deg_q16)},
+    {FIELD_U32, 3, (uint8_t)offsetof(ctrlbus_set_v_and_get_deadreckon_answer_t, dx_mm_q16)},
     {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_set_v_and_get_deadreckon_answer_t, status)},
     /* only in the 17-byte form: the size ends the walk before it */
     {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_set_v_and_get_deadreckon_answer_t, timestamp_ms)},
