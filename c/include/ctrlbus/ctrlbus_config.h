@@ -17,8 +17,8 @@
  *     ctrlbus_base_init() refuses (CTRLBUS_ERR_UNSUPPORTED) a config that asks for it.
  *
  * The size effects are .text bytes of the base stack on cortex-m0plus, arm-none-eabi-gcc 12 -Os,
- * linked with --gc-sections, each switch turned off alone from the default build (5,510 B). All
- * off together (the minimal configuration) save 1,649 B (3,861 B left). Measured with
+ * linked with --gc-sections, each switch turned off alone from the default build (5,490 B). All
+ * off together (the minimal configuration) save 1,645 B (3,845 B left). Measured with
  * `make size`, which prints both configurations for every target; docs/performance.md tables
  * them.
  */
@@ -33,7 +33,7 @@
  * watchdog's health warning). Off: HEALTH_GET_HEALTH (mandatory) answers no errors,
  * HEALTH_GET_ERROR and HEALTH_CLR_ERROR answer 0x8002 (no such error, as with an empty registry),
  * ctrlbus_base_health_add/_clear return CTRLBUS_ERR_UNSUPPORTED, and a config with
- * health_entries is refused. Size effect: 505 B. */
+ * health_entries is refused. Size effect: 501 B. */
 #ifndef CTRLBUS_CONFIG_HEALTH
 #define CTRLBUS_CONFIG_HEALTH 1
 #endif
@@ -75,7 +75,7 @@
  * (src/messages_master.c), so a base firmware linked with --gc-sections never pays for them;
  * off, they are neither compiled nor declared (using one is a compile error).
  * Size effect on the base stack: 0 B (they were never linked into it); on the whole library
- * (every object, unlinked): 1,649 B (src/messages_master.c). */
+ * (every object, unlinked): 1,659 B (src/messages_master.c). */
 #ifndef CTRLBUS_CONFIG_MASTER_CODECS
 #define CTRLBUS_CONFIG_MASTER_CODECS 1
 #endif
