@@ -12,10 +12,10 @@ disassembly (pushes, `sub sp,#N`, `addi sp,sp,-N`). On AVR a call also pushes it
 address, which the .su figures leave out: 2 bytes are added per frame there.
 
 The call graph is read from the disassembly of the linked ELF: an instruction that names another
-function symbol (a call, or a tail branch) is an edge. Indirect calls are of two kinds: into the
-library's own answer-field writers (`*_fields`, called through a pointer by ctrlbus_codec_write_ok), which
-become edges to every one of them; and into the application (handlers, the write callback),
-whose own stack is not the library's and comes on top. The result is the largest sum of frames
+function symbol (a call, or a tail branch) is an edge. The library calls nothing of its own
+through a pointer (answers are written by one table-walking writer), so every indirect call goes
+into the application (handlers, the write callback), whose own stack is not the library's and
+comes on top. The result is the largest sum of frames
 along any path from ROOT (recursion is an error: the library has none).
 
 Prints one line: `<bytes> <path>` with the path's functions joined by " > ".
@@ -29,7 +29,6 @@ import sys
 from functools import cache
 from pathlib import Path
 
-LIBRARY_INDIRECT_TARGETS = re.compile(r"_fields$")
 _FUNCTION = re.compile(r"^[0-9a-f]+ <([^>]+)>:$")
 _REFERENCE = re.compile(r"<([A-Za-z_.$][\w.$]*)(?:[+-]0x[0-9a-f]+)?>")
 _INDIRECT = re.compile(r"\t(blx\s+r\d+|jalr\s|c\.jalr\s|icall|eicall)\b")
@@ -78,7 +77,6 @@ def main() -> int:
             bodies[current] = []
         elif current is not None and line.strip():
             bodies[current].append(line)
-    library_targets = sorted(name for name in bodies if LIBRARY_INDIRECT_TARGETS.search(name))
     calls: dict[str, set[str]] = {}
     app_callbacks: set[str] = set()
     for name, body in bodies.items():
@@ -88,10 +86,7 @@ def main() -> int:
                 if ref != name and ref in bodies:
                     callees.add(ref)
             if _INDIRECT.search(line):
-                if name.endswith("write_ok"):
-                    callees.update(library_targets)
-                else:
-                    app_callbacks.add(name)
+                app_callbacks.add(name)
         calls[name] = callees
     if root not in bodies:
         print(f"stack_usage.py: {root} is not in {elf}", file=sys.stderr)

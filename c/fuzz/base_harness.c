@@ -75,6 +75,7 @@ static struct {
     size_t rebooted_at; /* out_len when the reboot hook ran; SIZE_MAX: it did not */
     ctrlbus_decoder_t reader;
 
+    ctrlbus_get_base_conf_answer_t base_conf; /* config.base_conf */
     handler_call_t calls[VERDICTS_CAP];
     size_t call_count;
     size_t call_next;
@@ -145,20 +146,18 @@ static void position(ctrlbus_position_t *p)
     p->angle_deg_q8 = rnd(360u * 256u);
 }
 
-static int32_t on_base_config(void *context, ctrlbus_get_base_conf_answer_t *out)
+/* GET_BASE_CONF's answer is a struct, not a handler: random but valid, drawn once per run. */
+static void draw_base_conf(ctrlbus_get_base_conf_answer_t *out)
 {
-    (void)context;
-    verdict_t v = decide(CTRLBUS_REQ_GET_BASE_CONF, true);
     out->base_type = (uint8_t)rnd(2);
     out->base_radius_mm_q8 = fuzz_rng(&h.rng);
     out->motor_type = 0;
-    out->sensor_num = (uint8_t)(v == VERDICT_BAD_STRUCT ? CTRLBUS_CONF_SLOTS + 1u : rnd(9));
+    out->sensor_num = (uint8_t)rnd(9);
     out->bumper_num = (uint8_t)rnd(9);
     for (size_t i = 0; i < CTRLBUS_CONF_SLOTS; i++) {
         position(&out->sensors[i]);
         position(&out->bumpers[i]);
     }
-    return result_of(v);
 }
 
 static int32_t on_status(void *context, ctrlbus_get_base_status_answer_t *out)
@@ -372,7 +371,6 @@ static bool has_logged_handler(ctrlbus_req_kind_t kind)
 {
     switch (kind) {
     case CTRLBUS_REQ_CONNECT_BASE:
-    case CTRLBUS_REQ_GET_BASE_CONF:
     case CTRLBUS_REQ_GET_BASE_STATUS:
     case CTRLBUS_REQ_GET_BASE_MOTOR_DATA:
     case CTRLBUS_REQ_GET_BASE_SENSOR_DATA:
@@ -612,7 +610,8 @@ void base_harness_start(fuzz_input_t *in, uint32_t now_ms)
     }
     c->write = on_write;
     c->connect_info = on_connect_info;
-    c->base_config = on_base_config;
+    draw_base_conf(&h.base_conf);
+    c->base_conf = &h.base_conf;
     c->status = on_status;
     c->motor_data = on_motor_data;
     c->sensor_data = on_sensor_data;

@@ -400,6 +400,13 @@ static bool scale_to(int32_t *a, int32_t *b, int32_t peak_a, int32_t peak_b, uin
 
 /* ---- answering ------------------------------------------------------------------------------ */
 
+/* Keeps a helper with several callers out of line (GCC, clang): -Os alone copies it into each. */
+#if defined(__GNUC__)
+#define SHARED __attribute__((noinline))
+#else
+#define SHARED
+#endif
+
 static ctrlbus_frame_type_t answer_type(const ctrlbus_base_t *base)
 {
     return base->config->standard_answers ? CTRLBUS_FRAME_AUTO : CTRLBUS_FRAME_LONG;
@@ -536,13 +543,12 @@ static void poll_answer(const ctrlbus_base_t *base, ctrlbus_poll_base_cmd_answer
         out->has_command || sdk2020(base->config) ? CTRLBUS_POLL_BASE_CMD_ANSWER_SIZE : 0u;
 }
 
-/* Where a request's answer struct lives while its handler fills it and it is written. Only one
+/* Where a handler's answer struct lives while the handler fills it and it is written. Only one
  * member is in use per request, and only that member is zeroed: this is storage, not a tagged
- * answer (nothing switches on it again). Its size is GET_BASE_CONF's answer, the largest. */
+ * answer (nothing switches on it again). GET_BASE_CONF's answer, the largest layout, is not here:
+ * it is written straight from the application's struct (config->base_conf). */
 typedef union {
     ctrlbus_connect_base_answer_t connect_base;
-    ctrlbus_get_base_conf_answer_t get_base_conf;
-    ctrlbus_get_base_conf_adv_answer_t get_base_conf_adv;
     ctrlbus_get_base_status_answer_t get_base_status;
     ctrlbus_get_base_motor_data_answer_t get_base_motor_data;
     ctrlbus_get_base_sensor_data_answer_t get_base_sensor_data;
@@ -554,196 +560,240 @@ typedef union {
     ctrlbus_health_get_error_answer_t health_get_error;
 } answer_storage_t;
 
-/* Runs the application's part of a validated request and writes its answer: one switch on the
- * request; its case zeroes and fills its own answer struct, checks it and computes its size once
- * (the layout's _size, or the constant), and names its layout's field writer; one common write
- * streams the frame. Returns 0 when answered, else the ERROR code to answer with (nothing
- * written yet then). */
-static uint16_t answer_request(ctrlbus_base_t *base, const ctrlbus_request_t *request,
-                               ctrlbus_sink_t *sink, uint32_t now_ms)
+/* What a request is answered with when nothing failed: an OK frame of `size` payload bytes
+ * (negative: a check refused the handler's struct), its layout (NULL: empty) and its struct. */
+typedef struct {
+    int32_t size;
+    ctrlbus_codec_layout_t layout;
+    const void *answer;
+} reply_t;
+
+/* answer_request's result besides 0 (the reply is to be written) and an ERROR code. */
+#define ALREADY_ANSWERED 1u
+
+/* The requests whose answer a handler (or the stack) fills into a struct: one switch; each case
+ * zeroes and fills its own member of *out, computes its size once (the layout's _size, or the
+ * constant) and names its layout. Returns 0 (reply set) or the ERROR code to answer with. */
+static uint16_t answer_filled(ctrlbus_base_t *base, const ctrlbus_request_t *request,
+                              answer_storage_t *out, reply_t *reply, uint32_t now_ms)
 {
     const ctrlbus_base_config_t *config = base->config;
     void *context = config->context;
-    answer_storage_t out;
     int32_t result = CTRLBUS_ERR_UNSUPPORTED; /* the handler's; unsupported while it is missing */
-    int32_t size = 0;                         /* the OK payload's; negative: a struct refused */
-    ctrlbus_codec_put_fn put = NULL;          /* its fields; NULL: an empty OK */
+    int32_t size = 0;
+    ctrlbus_codec_layout_t layout = NULL;
     switch (request->kind) {
     case CTRLBUS_REQ_CONNECT_BASE:
         if (config->connect_info != NULL) {
-            memset(&out.connect_base, 0, sizeof out.connect_base);
-            result = config->connect_info(context, &out.connect_base);
-            out.connect_base.has_firmware_version_suffix = sdk2020(config); /* the profile's size */
-            size = ctrlbus_connect_base_answer_size(&out.connect_base);
-            put = ctrlbus_codec_connect_base_fields;
+            memset(&out->connect_base, 0, sizeof out->connect_base);
+            result = config->connect_info(context, &out->connect_base);
+            out->connect_base.has_firmware_version_suffix = sdk2020(config); /* the profile's size */
+            size = ctrlbus_connect_base_answer_size(&out->connect_base);
+            layout = ctrlbus_codec_connect_base_layout;
         }
         break;
-    case CTRLBUS_REQ_GET_BASE_CONF:
-        if (config->base_config != NULL) {
-            memset(&out.get_base_conf, 0, sizeof out.get_base_conf);
-            result = config->base_config(context, &out.get_base_conf);
-            size = ctrlbus_get_base_conf_answer_size(&out.get_base_conf);
-            put = ctrlbus_codec_get_base_conf_fields;
-        }
-        break;
-#if CTRLBUS_CONFIG_CONF_ADV
-    case CTRLBUS_REQ_GET_BASE_CONF_ADV:
-        if (config->binary_config != NULL && config->binary_config_size != 0u) {
-            out.get_base_conf_adv.blob = config->binary_config;
-            out.get_base_conf_adv.blob_len = config->binary_config_size; /* init checked it */
-            result = CTRLBUS_OK;
-            size = config->binary_config_size;
-            put = ctrlbus_codec_get_base_conf_adv_fields;
-        }
-        break;
-#endif
     case CTRLBUS_REQ_GET_BASE_STATUS:
         if (config->status != NULL) {
-            memset(&out.get_base_status, 0, sizeof out.get_base_status);
-            result = config->status(context, &out.get_base_status);
+            memset(&out->get_base_status, 0, sizeof out->get_base_status);
+            result = config->status(context, &out->get_base_status);
             size = CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE;
-            put = ctrlbus_codec_get_base_status_fields;
+            layout = ctrlbus_codec_get_base_status_layout;
         }
         break;
     case CTRLBUS_REQ_GET_BASE_MOTOR_DATA:
         if (config->motor_data != NULL) {
-            memset(&out.get_base_motor_data, 0, sizeof out.get_base_motor_data);
-            result = config->motor_data(context, &out.get_base_motor_data);
+            memset(&out->get_base_motor_data, 0, sizeof out->get_base_motor_data);
+            result = config->motor_data(context, &out->get_base_motor_data);
             size = CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE;
-            put = ctrlbus_codec_get_base_motor_data_fields;
+            layout = ctrlbus_codec_get_base_motor_data_layout;
         }
         break;
     case CTRLBUS_REQ_GET_BASE_SENSOR_DATA:
         if (config->sensor_data != NULL) {
-            memset(&out.get_base_sensor_data, 0, sizeof out.get_base_sensor_data);
-            result = config->sensor_data(context, &out.get_base_sensor_data);
+            memset(&out->get_base_sensor_data, 0, sizeof out->get_base_sensor_data);
+            result = config->sensor_data(context, &out->get_base_sensor_data);
             size = CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE;
-            put = ctrlbus_codec_get_base_sensor_data_fields;
+            layout = ctrlbus_codec_get_base_sensor_data_layout;
         }
         break;
     case CTRLBUS_REQ_GET_BASE_BUMPER_DATA:
         if (config->bumper_data != NULL) {
-            memset(&out.get_base_bumper_data, 0, sizeof out.get_base_bumper_data);
-            result = config->bumper_data(context, &out.get_base_bumper_data);
-            if (out.get_base_bumper_data.payload_size == 0u || sdk2020(config)) {
+            memset(&out->get_base_bumper_data, 0, sizeof out->get_base_bumper_data);
+            result = config->bumper_data(context, &out->get_base_bumper_data);
+            if (out->get_base_bumper_data.payload_size == 0u || sdk2020(config)) {
                 /* same value, padded */
-                out.get_base_bumper_data.payload_size = CTRLBUS_GET_BASE_BUMPER_DATA_ANSWER_SIZE;
+                out->get_base_bumper_data.payload_size = CTRLBUS_GET_BASE_BUMPER_DATA_ANSWER_SIZE;
             }
-            size = ctrlbus_get_base_bumper_data_answer_size(&out.get_base_bumper_data);
-            put = ctrlbus_codec_get_base_bumper_data_fields;
+            size = ctrlbus_get_base_bumper_data_answer_size(&out->get_base_bumper_data);
+            layout = ctrlbus_codec_get_base_bumper_data_layout;
         }
         break;
     case CTRLBUS_REQ_GET_CHARGER_DATA:
         if (config->charger_data != NULL) {
-            memset(&out.get_charger_data, 0, sizeof out.get_charger_data);
-            result = config->charger_data(context, &out.get_charger_data);
-            size = ctrlbus_get_charger_data_answer_size(&out.get_charger_data);
-            put = ctrlbus_codec_get_charger_data_fields;
-        }
-        break;
-    case CTRLBUS_REQ_SET_BASE_MOTOR:
-        if (config->set_wheel_speeds != NULL) {
-            result = set_wheel_speeds(base, &request->as.set_base_motor);
+            memset(&out->get_charger_data, 0, sizeof out->get_charger_data);
+            result = config->charger_data(context, &out->get_charger_data);
+            size = ctrlbus_get_charger_data_answer_size(&out->get_charger_data);
+            layout = ctrlbus_codec_get_charger_data_layout;
         }
         break;
     case CTRLBUS_REQ_SET_V_AND_GET_DEADRECKON:
         if (config->set_velocity != NULL) {
-            memset(&out.set_v_and_get_deadreckon, 0, sizeof out.set_v_and_get_deadreckon);
+            memset(&out->set_v_and_get_deadreckon, 0, sizeof out->set_v_and_get_deadreckon);
             result = set_velocity(base, request->as.set_v_and_get_deadreckon,
-                                  &out.set_v_and_get_deadreckon, now_ms);
-            size = ctrlbus_set_v_and_get_deadreckon_answer_size(&out.set_v_and_get_deadreckon);
-            put = ctrlbus_codec_set_v_and_get_deadreckon_fields;
+                                  &out->set_v_and_get_deadreckon, now_ms);
+            size = ctrlbus_set_v_and_get_deadreckon_answer_size(&out->set_v_and_get_deadreckon);
+            layout = ctrlbus_codec_set_v_and_get_deadreckon_layout;
         }
         break;
     case CTRLBUS_REQ_POLL_BASE_CMD:
-        memset(&out.poll_base_cmd, 0, sizeof out.poll_base_cmd);
-        poll_answer(base, &out.poll_base_cmd);
+        memset(&out->poll_base_cmd, 0, sizeof out->poll_base_cmd);
+        poll_answer(base, &out->poll_base_cmd);
         result = CTRLBUS_OK;
-        size = out.poll_base_cmd.payload_size; /* 0 or 2, consistent by construction */
-        put = ctrlbus_codec_poll_base_cmd_fields;
+        size = out->poll_base_cmd.payload_size; /* 0 or 2, consistent by construction */
+        layout = ctrlbus_codec_poll_base_cmd_layout;
+        break;
+    case CTRLBUS_REQ_HEALTH_GET_HEALTH:
+        health_summary(base, &out->health_get_health);
+        result = CTRLBUS_OK;
+        size = CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE;
+        layout = ctrlbus_codec_health_get_health_layout;
+        break;
+    case CTRLBUS_REQ_HEALTH_GET_ERROR:
+        memset(&out->health_get_error, 0, sizeof out->health_get_error);
+        if (!health_entry(base, request->as.health_get_error.index, &out->health_get_error)) {
+            return CTRLBUS_WIRE_ERR_OPERATION;
+        }
+        result = CTRLBUS_OK;
+        size = ctrlbus_health_get_error_answer_size(&out->health_get_error);
+        layout = ctrlbus_codec_health_get_error_layout;
+        break;
+    default: break; /* GET_AUXILIARY_ANCHOR has no layout, and features compiled out: 0x8000 */
+    }
+    if (result < 0) {
+        return handler_error(result);
+    }
+    reply->size = size;
+    reply->layout = layout;
+    reply->answer = out;
+    return 0;
+}
+
+/* Runs the application's part of a validated request: one dispatch per request. Returns 0 when
+ * *reply is to be written, ALREADY_ANSWERED, or the ERROR code to answer with (nothing written
+ * yet then). */
+static uint16_t answer_request(ctrlbus_base_t *base, const ctrlbus_request_t *request,
+                               answer_storage_t *out, reply_t *reply, ctrlbus_sink_t *sink,
+                               ctrlbus_frame_type_t type, uint32_t now_ms)
+{
+    const ctrlbus_base_config_t *config = base->config;
+    void *context = config->context;
+    int32_t result = CTRLBUS_OK;
+    switch (request->kind) {
+    case CTRLBUS_REQ_GET_BASE_CONF:
+        if (config->base_conf == NULL) {
+            return CTRLBUS_WIRE_ERR_UNSUPPORTED;
+        }
+        /* Streamed from the application's struct: no copy on the stack. */
+        reply->size = ctrlbus_get_base_conf_answer_size(config->base_conf);
+        reply->layout = ctrlbus_codec_get_base_conf_layout;
+        reply->answer = config->base_conf;
+        return 0;
+#if CTRLBUS_CONFIG_CONF_ADV
+    case CTRLBUS_REQ_GET_BASE_CONF_ADV:
+        if (config->binary_config == NULL || config->binary_config_size == 0u) {
+            return CTRLBUS_WIRE_ERR_UNSUPPORTED;
+        }
+        /* The layout reads the blob pointer at the struct's start: binary_config itself. */
+        reply->size = (int32_t)config->binary_config_size; /* init checked it */
+        reply->layout = ctrlbus_codec_get_base_conf_adv_layout;
+        reply->answer = &config->binary_config;
+        return 0;
+#endif
+    case CTRLBUS_REQ_SET_BASE_MOTOR:
+        result = config->set_wheel_speeds != NULL
+                     ? set_wheel_speeds(base, &request->as.set_base_motor)
+                     : CTRLBUS_ERR_UNSUPPORTED;
         break;
     case CTRLBUS_REQ_POLL_BASE_ANS_CMD:
 #if CTRLBUS_CONFIG_COMMAND_QUEUE
         command_taken(base);
 #endif
-        result = CTRLBUS_OK;
         break;
     case CTRLBUS_REQ_SEND_EVENT:
-        result = config->on_event != NULL
-                     ? config->on_event(context, request->as.send_event.event)
-                     : CTRLBUS_OK;
-        break;
-    case CTRLBUS_REQ_HEALTH_GET_HEALTH:
-        health_summary(base, &out.health_get_health);
-        result = CTRLBUS_OK;
-        size = CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE;
-        put = ctrlbus_codec_health_get_health_fields;
-        break;
-    case CTRLBUS_REQ_HEALTH_GET_ERROR:
-        memset(&out.health_get_error, 0, sizeof out.health_get_error);
-        if (!health_entry(base, request->as.health_get_error.index, &out.health_get_error)) {
-            return CTRLBUS_WIRE_ERR_OPERATION;
+        if (config->on_event != NULL) {
+            result = config->on_event(context, request->as.send_event.event);
         }
-        result = CTRLBUS_OK;
-        size = ctrlbus_health_get_error_answer_size(&out.health_get_error);
-        put = ctrlbus_codec_health_get_error_fields;
         break;
     case CTRLBUS_REQ_HEALTH_CLR_ERROR:
         if (ctrlbus_base_health_clear(base, request->as.health_clr_error.error_code) <= 0) {
             return CTRLBUS_WIRE_ERR_OPERATION; /* not registered (or no registry) */
         }
-        result = CTRLBUS_OK;
         break;
     case CTRLBUS_REQ_BASE_CMD: {
         /* Its hook runs once the answer is out. */
         bool reboot = request->as.base_cmd.subcommand == CTRLBUS_BASE_CMD_REBOOT;
         void (*hook)(void *) = reboot ? config->reboot : config->enter_dfu;
         if (hook == NULL) {
-            break;
+            return CTRLBUS_WIRE_ERR_UNSUPPORTED;
         }
-        (void)ctrlbus_codec_write_ok(sink, 0, NULL, NULL, answer_type(base));
+        (void)ctrlbus_codec_write_ok(sink, 0, NULL, NULL, type);
         if (reboot) {
             restart(base, now_ms); /* what a handler that returns (a host base) finds */
         }
         hook(context);
-        return 0;
+        return ALREADY_ANSWERED;
     }
-    default: break; /* GET_AUXILIARY_ANCHOR has no layout, and features compiled out: 0x8000 */
+    default: return answer_filled(base, request, out, reply, now_ms);
     }
-    if (result < 0) {
-        return handler_error(result);
-    }
-    /* A struct the check refuses (text that is not ASCII, a count over 8, ...) is a handler
-     * failure; it is found before any byte goes out. */
-    if (size < 0) {
-        return CTRLBUS_WIRE_ERR_OPERATION;
-    }
-    /* A write callback's failure cuts this answer short; there is nothing more to say. */
-    (void)ctrlbus_codec_write_ok(sink, size, put, &out, answer_type(base));
-    return 0;
+    return result < 0 ? handler_error(result) : 0u; /* the empty OKs: reply as set */
 }
 
-static void handle_frame(ctrlbus_base_t *base, const ctrlbus_frame_t *frame, uint32_t now_ms,
-                         ctrlbus_sink_t *sink)
+/* Decodes a request, runs it and writes its one answer (OK, ERROR, or the SYNC/ECHO copy), or
+ * writes the ERROR for a decoder event (rx not CTRLBUS_RX_FRAME): the one place answers leave. */
+static void answer(ctrlbus_base_t *base, ctrlbus_rx_t rx, const ctrlbus_frame_t *frame,
+                   uint32_t now_ms, ctrlbus_sink_t *sink, ctrlbus_frame_type_t type)
 {
-    if (frame->cmd == CTRLBUS_CMD_SYNC || frame->cmd == CTRLBUS_CMD_ECHO) {
+    uint16_t error;
+    ctrlbus_request_t request;
+    answer_storage_t out;
+    reply_t reply = {0, NULL, NULL};
+    if (rx != CTRLBUS_RX_FRAME) {
+        error = (size_t)rx < sizeof EVENT_ERRORS / sizeof EVENT_ERRORS[0] ? EVENT_ERRORS[rx] : 0u;
+        if (error == CTRLBUS_WIRE_ERR_CHECKSUM && base->config->reference_checksum_code) {
+            error = CTRLBUS_WIRE_ERR_CHECKSUM_REFERENCE;
+        }
+        if (error == 0u) {
+            return; /* a timeout: nothing to say */
+        }
+    } else if (frame->cmd == CTRLBUS_CMD_SYNC || frame->cmd == CTRLBUS_CMD_ECHO) {
         /* The request copied verbatim, flag and checksum included; not motor traffic. */
         (void)ctrlbus_frame_write(sink, frame->cmd, frame->payload, frame->payload_len,
                                   frame->is_long ? CTRLBUS_FRAME_LONG : CTRLBUS_FRAME_STANDARD);
         return;
+    } else {
+        if (frame->cmd == CTRLBUS_CMD_CTRL_BUS) {
+            /* Any CTRL_BUS frame that passed its checksum shows that the Core is alive (§9.1). */
+            base->last_feed_ms = now_ms;
+            clear_flags(base, FLAG_WATCHDOG_EXPIRED);
+        }
+        int32_t result =
+            ctrlbus_request_decode(&request, frame->cmd, frame->payload, frame->payload_len);
+        error = result < 0 ? ctrlbus_request_error_code(&request, result)
+                           : answer_request(base, &request, &out, &reply, sink, type, now_ms);
+        if (error == ALREADY_ANSWERED) {
+            return;
+        }
+        /* A struct the check refuses (text that is not ASCII, a count over 8, ...) is a handler
+         * failure; it is found before any byte goes out. */
+        if (error == 0u && reply.size < 0) {
+            error = CTRLBUS_WIRE_ERR_OPERATION;
+        }
     }
-    if (frame->cmd == CTRLBUS_CMD_CTRL_BUS) {
-        /* Any CTRL_BUS frame that passed its checksum shows that the Core is alive (§9.1). */
-        base->last_feed_ms = now_ms;
-        clear_flags(base, FLAG_WATCHDOG_EXPIRED);
-    }
-    ctrlbus_request_t request;
-    int32_t result =
-        ctrlbus_request_decode(&request, frame->cmd, frame->payload, frame->payload_len);
-    uint16_t error = result < 0 ? ctrlbus_request_error_code(&request, result)
-                                : answer_request(base, &request, sink, now_ms);
+    /* A write callback's failure cuts an answer short; there is nothing more to say. */
     if (error != 0u) {
-        (void)ctrlbus_error_answer_write(sink, error, answer_type(base));
+        (void)ctrlbus_error_answer_write(sink, error, type);
+    } else {
+        (void)ctrlbus_codec_write_ok(sink, reply.size, reply.layout, reply.answer, type);
     }
 }
 
@@ -757,6 +807,7 @@ static unsigned drain(ctrlbus_base_t *base, uint32_t now_ms, ctrlbus_rx_t first,
     (void)ctrlbus_sink_init(&sink, config->write, config->write_context);
     unsigned results = 0;
     ctrlbus_frame_t frame;
+    ctrlbus_frame_type_t type = answer_type(base);
     if (first != CTRLBUS_RX_NONE && first != CTRLBUS_RX_BUSY) {
         frame = *first_frame;
     } else {
@@ -765,18 +816,7 @@ static unsigned drain(ctrlbus_base_t *base, uint32_t now_ms, ctrlbus_rx_t first,
     for (ctrlbus_rx_t rx = first; rx != CTRLBUS_RX_NONE;
          rx = ctrlbus_decoder_next(&base->decoder, &frame)) {
         results++;
-        if (rx == CTRLBUS_RX_FRAME) {
-            handle_frame(base, &frame, now_ms, &sink);
-            continue;
-        }
-        uint16_t error =
-            (size_t)rx < sizeof EVENT_ERRORS / sizeof EVENT_ERRORS[0] ? EVENT_ERRORS[rx] : 0u;
-        if (error == CTRLBUS_WIRE_ERR_CHECKSUM && config->reference_checksum_code) {
-            error = CTRLBUS_WIRE_ERR_CHECKSUM_REFERENCE;
-        }
-        if (error != 0u) {
-            (void)ctrlbus_error_answer_write(&sink, error, answer_type(base));
-        }
+        answer(base, rx, &frame, now_ms, &sink, type);
     }
     return results;
 }

@@ -12,6 +12,18 @@
 
 #include "ctrlbus/messages.h"
 
+/* The codec's constant tables live in flash. Every other target reads flash with ordinary loads;
+ * an AVR keeps plain `const` data in its scarce RAM, so there they are PROGMEM and each byte is
+ * read with pgm_read_byte. Read table bytes only through CODEC_ROM_BYTE. */
+#if defined(__AVR__)
+#include <avr/pgmspace.h>
+#define CODEC_ROM PROGMEM
+#define CODEC_ROM_BYTE(address) pgm_read_byte(address)
+#else
+#define CODEC_ROM
+#define CODEC_ROM_BYTE(address) (*(address))
+#endif
+
 /* ---- reading fields: callers check the payload length first ---------------------------------- */
 
 static inline uint8_t codec_take_u8(const uint8_t **p)
@@ -72,29 +84,65 @@ static inline bool codec_has_empty_ok(ctrlbus_req_kind_t kind)
            kind == CTRLBUS_REQ_BASE_CMD;
 }
 
+/* ---- the control-bus requests: how each travels in a CMD 0xF8 payload (messages.c) ---------- */
+
+typedef struct {
+    uint8_t kind; /* ctrlbus_req_kind_t */
+    uint8_t code;
+    uint8_t subcommand; /* HEALTH_MGMT only */
+    uint8_t size;       /* whole payload, code (and sub-command) included */
+} ctrlbus_codec_request_layout_t;
+
+#define CTRLBUS_CODEC_REQUEST_LAYOUTS 17u
+extern const ctrlbus_codec_request_layout_t ctrlbus_codec_request_layouts[CTRLBUS_CODEC_REQUEST_LAYOUTS]
+    CODEC_ROM;
+
 /* ---- writing answers: what messages.c shares with the base stack --------------------------- */
 
-/* Writes the fields of one answer layout; the struct has been checked (its _size). */
-typedef void (*ctrlbus_codec_put_fn)(ctrlbus_sink_t *sink, const void *answer);
+/* An answer layout: its fields in wire order, each read from the answer struct at `offset`:
+ * a table walked by one writer (ctrlbus_codec_put_fields) instead of one function per layout. */
+typedef enum {             /* the integer kinds first: kind <= FIELD_U32 is "an integer run" */
+    FIELD_END,          /* the table's end */
+    FIELD_U8,           /* `count` uint8_t (or bool) values */
+    FIELD_U16,          /* `count` uint16_t values, little-endian */
+    FIELD_U32,          /* `count` uint32_t or int32_t values, little-endian (two's complement) */
+    FIELD_TEXT,         /* a char array: its text up to the NUL, zero-padded to `count` bytes */
+    FIELD_BYTES,        /* a `const uint8_t *`: the rest of the payload, whatever its length */
+    FIELD_POLL_COMMAND, /* a bool has_command then the command byte: the command or 0xFF */
+} ctrlbus_codec_field_kind_t;
+
+typedef struct {
+    uint8_t kind; /* ctrlbus_codec_field_kind_t */
+    uint8_t count;
+    uint8_t offset; /* offsetof the member in the layout's struct */
+} ctrlbus_codec_field_t;
+
+typedef const ctrlbus_codec_field_t *ctrlbus_codec_layout_t;
+
+/* Writes `size` payload bytes of an answer struct through its layout; the struct has been
+ * checked (its _size gave `size`), and the size ends the walk (optional tail fields, the short
+ * bumper form). */
+void ctrlbus_codec_put_fields(ctrlbus_sink_t *sink, ctrlbus_codec_layout_t layout,
+                              const void *answer, size_t size);
 
 /* An OK answer frame of `size` payload bytes (a negative size is a check's error, returned
- * before anything is written), its fields through put (NULL: an empty payload), its checksum.
+ * before anything is written), its fields through layout (NULL: an empty payload), its checksum.
  * Returns the frame's size or a negative error. */
-int32_t ctrlbus_codec_write_ok(ctrlbus_sink_t *sink, int32_t size, ctrlbus_codec_put_fn put,
+int32_t ctrlbus_codec_write_ok(ctrlbus_sink_t *sink, int32_t size, ctrlbus_codec_layout_t layout,
                                const void *answer, ctrlbus_frame_type_t type);
 
-/* Each layout's fields, in wire order (answer points at that layout's struct). */
-void ctrlbus_codec_connect_base_fields(ctrlbus_sink_t *sink, const void *answer);
-void ctrlbus_codec_get_base_conf_fields(ctrlbus_sink_t *sink, const void *answer);
-void ctrlbus_codec_get_base_conf_adv_fields(ctrlbus_sink_t *sink, const void *answer);
-void ctrlbus_codec_get_base_status_fields(ctrlbus_sink_t *sink, const void *answer);
-void ctrlbus_codec_get_base_motor_data_fields(ctrlbus_sink_t *sink, const void *answer);
-void ctrlbus_codec_get_base_sensor_data_fields(ctrlbus_sink_t *sink, const void *answer);
-void ctrlbus_codec_get_base_bumper_data_fields(ctrlbus_sink_t *sink, const void *answer);
-void ctrlbus_codec_get_charger_data_fields(ctrlbus_sink_t *sink, const void *answer);
-void ctrlbus_codec_set_v_and_get_deadreckon_fields(ctrlbus_sink_t *sink, const void *answer);
-void ctrlbus_codec_poll_base_cmd_fields(ctrlbus_sink_t *sink, const void *answer);
-void ctrlbus_codec_health_get_health_fields(ctrlbus_sink_t *sink, const void *answer);
-void ctrlbus_codec_health_get_error_fields(ctrlbus_sink_t *sink, const void *answer);
+/* Each answer's layout (messages.c). */
+extern const ctrlbus_codec_field_t ctrlbus_codec_connect_base_layout[] CODEC_ROM;
+extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_conf_layout[] CODEC_ROM;
+extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_conf_adv_layout[] CODEC_ROM;
+extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_status_layout[] CODEC_ROM;
+extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_motor_data_layout[] CODEC_ROM;
+extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_sensor_data_layout[] CODEC_ROM;
+extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_bumper_data_layout[] CODEC_ROM;
+extern const ctrlbus_codec_field_t ctrlbus_codec_get_charger_data_layout[] CODEC_ROM;
+extern const ctrlbus_codec_field_t ctrlbus_codec_set_v_and_get_deadreckon_layout[] CODEC_ROM;
+extern const ctrlbus_codec_field_t ctrlbus_codec_poll_base_cmd_layout[] CODEC_ROM;
+extern const ctrlbus_codec_field_t ctrlbus_codec_health_get_health_layout[] CODEC_ROM;
+extern const ctrlbus_codec_field_t ctrlbus_codec_health_get_error_layout[] CODEC_ROM;
 
 #endif

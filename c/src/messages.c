@@ -6,13 +6,37 @@
 
 #include "codec.h"
 
-static void put_position(ctrlbus_sink_t *sink, const ctrlbus_position_t *position)
-{
-    ctrlbus_sink_put_s32(sink, position->x_mm_q8);
-    ctrlbus_sink_put_s32(sink, position->y_mm_q8);
-    ctrlbus_sink_put_s32(sink, position->z_mm_q8);
-    ctrlbus_sink_put_u32(sink, position->angle_deg_q8);
-}
+#include <stddef.h>
+
+/* Where the compiler says that integers are stored little-endian (GCC, clang: every target of
+ * ours), a run of integer fields goes out straight from the struct; elsewhere value by value. */
+#if defined(__BYTE_ORDER__) && defined(__ORDER_LITTLE_ENDIAN__) && \
+    __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+#define CODEC_HOST_LITTLE_ENDIAN 1
+#else
+#define CODEC_HOST_LITTLE_ENDIAN 0
+#endif
+
+/* A position is four 32-bit words, and a run of positions a run of words. */
+#define POSITION_WORDS (CTRLBUS_CONF_SLOTS * 4u)
+typedef char position_is_four_words[sizeof(ctrlbus_position_t) == 16u ? 1 : -1];
+/* Runs of same-type members the layouts write as one field (no padding between them). */
+#define FOLLOWS(type, first, second, width) (offsetof(type, second) == offsetof(type, first) + (width))
+typedef char runs_are_contiguous
+    [FOLLOWS(ctrlbus_connect_base_answer_t, firmware_version, hardware_version, 2u) &&
+             FOLLOWS(ctrlbus_get_base_motor_data_answer_t, left_distance_mm, right_distance_mm, 4u) &&
+             FOLLOWS(ctrlbus_set_v_and_get_deadreckon_answer_t, dx_mm_q16, dy_mm_q16, 4u) &&
+             FOLLOWS(ctrlbus_set_v_and_get_deadreckon_answer_t, dy_mm_q16, dtheta_deg_q16, 4u)
+         ? 1
+         : -1];
+
+/* POLL_BASE_CMD's command byte follows has_command (FIELD_POLL_COMMAND reads both). */
+typedef char command_follows_flag[offsetof(ctrlbus_poll_base_cmd_answer_t, command) ==
+                                          offsetof(ctrlbus_poll_base_cmd_answer_t, has_command) + 1u
+                                      ? 1
+                                      : -1];
+/* Every field offset of a layout fits a byte (the largest: GET_BASE_CONF's bumpers). */
+typedef char offsets_fit_a_byte[offsetof(ctrlbus_get_base_conf_answer_t, bumpers) < 256u ? 1 : -1];
 
 /* Whether text (up to its NUL, at most max_chars characters) can be written as a text field:
  * ASCII, and not longer than max_chars. */
@@ -70,113 +94,85 @@ uint16_t ctrlbus_request_error_code(const ctrlbus_request_t *request, int32_t er
     return CTRLBUS_WIRE_ERR_UNSUPPORTED;
 }
 
-/* Sets the request's kind and checks its payload length: CTRLBUS_OK or CTRLBUS_ERR_FORMAT. */
-static int32_t expect(ctrlbus_request_t *out, ctrlbus_req_kind_t kind, size_t len, size_t size)
-{
-    out->kind = kind;
-    return len == size ? CTRLBUS_OK : CTRLBUS_ERR_FORMAT;
-}
+/* The control-bus requests (codec.h): decoding finds a request here, encoding its code. */
+const ctrlbus_codec_request_layout_t ctrlbus_codec_request_layouts[CTRLBUS_CODEC_REQUEST_LAYOUTS]
+    CODEC_ROM = {
+    {CTRLBUS_REQ_CONNECT_BASE, CTRLBUS_CODE_CONNECT_BASE, 0, CTRLBUS_CONNECT_BASE_REQUEST_SIZE},
+    {CTRLBUS_REQ_GET_BASE_CONF, CTRLBUS_CODE_GET_BASE_CONF, 0, CTRLBUS_PLAIN_REQUEST_SIZE},
+    {CTRLBUS_REQ_GET_BASE_CONF_ADV, CTRLBUS_CODE_GET_BASE_CONF_ADV, 0, CTRLBUS_PLAIN_REQUEST_SIZE},
+    {CTRLBUS_REQ_GET_BASE_STATUS, CTRLBUS_CODE_GET_BASE_STATUS, 0, CTRLBUS_PLAIN_REQUEST_SIZE},
+    {CTRLBUS_REQ_GET_BASE_MOTOR_DATA, CTRLBUS_CODE_GET_BASE_MOTOR_DATA, 0,
+     CTRLBUS_PLAIN_REQUEST_SIZE},
+    {CTRLBUS_REQ_GET_BASE_SENSOR_DATA, CTRLBUS_CODE_GET_BASE_SENSOR_DATA, 0,
+     CTRLBUS_PLAIN_REQUEST_SIZE},
+    {CTRLBUS_REQ_GET_BASE_BUMPER_DATA, CTRLBUS_CODE_GET_BASE_BUMPER_DATA, 0,
+     CTRLBUS_PLAIN_REQUEST_SIZE},
+    {CTRLBUS_REQ_GET_CHARGER_DATA, CTRLBUS_CODE_GET_CHARGER_DATA, 0,
+     CTRLBUS_GET_CHARGER_DATA_REQUEST_SIZE},
+    {CTRLBUS_REQ_GET_AUXILIARY_ANCHOR, CTRLBUS_CODE_GET_AUXILIARY_ANCHOR, 0,
+     CTRLBUS_PLAIN_REQUEST_SIZE},
+    {CTRLBUS_REQ_SET_BASE_MOTOR, CTRLBUS_CODE_SET_BASE_MOTOR, 0,
+     CTRLBUS_SET_BASE_MOTOR_REQUEST_SIZE},
+    {CTRLBUS_REQ_SET_V_AND_GET_DEADRECKON, CTRLBUS_CODE_SET_V_AND_GET_DEADRECKON, 0,
+     CTRLBUS_SET_V_AND_GET_DEADRECKON_REQUEST_SIZE},
+    {CTRLBUS_REQ_POLL_BASE_CMD, CTRLBUS_CODE_POLL_BASE_CMD, 0, CTRLBUS_PLAIN_REQUEST_SIZE},
+    {CTRLBUS_REQ_POLL_BASE_ANS_CMD, CTRLBUS_CODE_POLL_BASE_ANS_CMD, 0, CTRLBUS_PLAIN_REQUEST_SIZE},
+    {CTRLBUS_REQ_SEND_EVENT, CTRLBUS_CODE_SEND_EVENT, 0, CTRLBUS_SEND_EVENT_REQUEST_SIZE},
+    {CTRLBUS_REQ_HEALTH_GET_HEALTH, CTRLBUS_CODE_HEALTH_MGMT, CTRLBUS_HEALTH_SUB_GET_HEALTH,
+     CTRLBUS_HEALTH_GET_HEALTH_REQUEST_SIZE},
+    {CTRLBUS_REQ_HEALTH_GET_ERROR, CTRLBUS_CODE_HEALTH_MGMT, CTRLBUS_HEALTH_SUB_GET_ERROR,
+     CTRLBUS_HEALTH_GET_ERROR_REQUEST_SIZE},
+    {CTRLBUS_REQ_HEALTH_CLR_ERROR, CTRLBUS_CODE_HEALTH_MGMT, CTRLBUS_HEALTH_SUB_CLR_ERROR,
+     CTRLBUS_HEALTH_CLR_ERROR_REQUEST_SIZE},
+};
 
 static int32_t supported_if(bool known)
 {
     return known ? CTRLBUS_OK : CTRLBUS_ERR_UNSUPPORTED;
 }
 
-/* HEALTH_MGMT: the sub-command (payload[1]) picks the request; len >= 2. */
-static int32_t decode_health(ctrlbus_request_t *out, const uint8_t *payload, size_t len)
-{
-    const uint8_t *args = payload + 2;
-    int32_t result;
-    switch (payload[1]) {
-    case CTRLBUS_HEALTH_SUB_GET_HEALTH:
-        return expect(out, CTRLBUS_REQ_HEALTH_GET_HEALTH, len,
-                      CTRLBUS_HEALTH_GET_HEALTH_REQUEST_SIZE);
-    case CTRLBUS_HEALTH_SUB_GET_ERROR:
-        result = expect(out, CTRLBUS_REQ_HEALTH_GET_ERROR, len,
-                        CTRLBUS_HEALTH_GET_ERROR_REQUEST_SIZE);
-        if (result == CTRLBUS_OK) {
-            out->as.health_get_error.index = codec_take_u8(&args);
-        }
-        return result;
-    case CTRLBUS_HEALTH_SUB_CLR_ERROR:
-        result = expect(out, CTRLBUS_REQ_HEALTH_CLR_ERROR, len,
-                        CTRLBUS_HEALTH_CLR_ERROR_REQUEST_SIZE);
-        if (result == CTRLBUS_OK) {
-            out->as.health_clr_error.error_code = codec_take_u32(&args);
-        }
-        return result;
-    default: out->kind = CTRLBUS_REQ_HEALTH_UNKNOWN; return CTRLBUS_ERR_UNSUPPORTED;
-    }
-}
-
-/* A CMD 0xF8 payload: one switch on the request code finds the request, checks its length (before
- * any value: a wrong length with a bad value is a FORMAT error), reads its arguments and checks
- * their values. */
+/* A CMD 0xF8 payload: the table finds the request (HEALTH_MGMT by its sub-command too), then its
+ * length is checked (before any value: a wrong length with a bad value is a FORMAT error), its
+ * arguments read and their values checked. The arguments are one byte or a run of 32-bit words,
+ * each at the start of the request's member of out->as. */
 static int32_t decode_ctrl_bus(ctrlbus_request_t *out, const uint8_t *payload, size_t len)
 {
     if (len == 0) {
         return CTRLBUS_ERR_FORMAT; /* no request code at all */
     }
-    const uint8_t *args = payload + 1;
-    int32_t result;
-    switch (payload[0]) {
-    case CTRLBUS_CODE_CONNECT_BASE:
-        result = expect(out, CTRLBUS_REQ_CONNECT_BASE, len, CTRLBUS_CONNECT_BASE_REQUEST_SIZE);
-        if (result == CTRLBUS_OK) {
-            out->as.connect_base.protocol_version = args[0];
-            result = supported_if(codec_connect_version_known(args[0]));
+    bool health = payload[0] == CTRLBUS_CODE_HEALTH_MGMT;
+    if (health && len < 2) {
+        return CTRLBUS_ERR_FORMAT;
+    }
+    const ctrlbus_codec_request_layout_t *layout = ctrlbus_codec_request_layouts;
+    while (CODEC_ROM_BYTE(&layout->code) != payload[0] ||
+           (health && CODEC_ROM_BYTE(&layout->subcommand) != payload[1])) {
+        if (++layout == ctrlbus_codec_request_layouts + CTRLBUS_CODEC_REQUEST_LAYOUTS) {
+            /* An unknown HEALTH_MGMT sub-command is answered 0x8002, an unknown code 0x8000. */
+            out->kind = health ? CTRLBUS_REQ_HEALTH_UNKNOWN : CTRLBUS_REQ_NONE;
+            return CTRLBUS_ERR_UNSUPPORTED;
         }
-        return result;
-    case CTRLBUS_CODE_GET_BASE_CONF:
-        return expect(out, CTRLBUS_REQ_GET_BASE_CONF, len, CTRLBUS_PLAIN_REQUEST_SIZE);
-    case CTRLBUS_CODE_GET_BASE_CONF_ADV:
-        return expect(out, CTRLBUS_REQ_GET_BASE_CONF_ADV, len, CTRLBUS_PLAIN_REQUEST_SIZE);
-    case CTRLBUS_CODE_GET_BASE_STATUS:
-        return expect(out, CTRLBUS_REQ_GET_BASE_STATUS, len, CTRLBUS_PLAIN_REQUEST_SIZE);
-    case CTRLBUS_CODE_GET_BASE_MOTOR_DATA:
-        return expect(out, CTRLBUS_REQ_GET_BASE_MOTOR_DATA, len, CTRLBUS_PLAIN_REQUEST_SIZE);
-    case CTRLBUS_CODE_GET_BASE_SENSOR_DATA:
-        return expect(out, CTRLBUS_REQ_GET_BASE_SENSOR_DATA, len, CTRLBUS_PLAIN_REQUEST_SIZE);
-    case CTRLBUS_CODE_GET_BASE_BUMPER_DATA:
-        return expect(out, CTRLBUS_REQ_GET_BASE_BUMPER_DATA, len, CTRLBUS_PLAIN_REQUEST_SIZE);
-    case CTRLBUS_CODE_GET_CHARGER_DATA:
-        result = expect(out, CTRLBUS_REQ_GET_CHARGER_DATA, len,
-                        CTRLBUS_GET_CHARGER_DATA_REQUEST_SIZE);
-        if (result == CTRLBUS_OK) {
-            out->as.get_charger_data.data_type = args[0];
-            result = supported_if(codec_charger_type_known(args[0]));
-        }
-        return result;
-    case CTRLBUS_CODE_GET_AUXILIARY_ANCHOR:
-        return expect(out, CTRLBUS_REQ_GET_AUXILIARY_ANCHOR, len, CTRLBUS_PLAIN_REQUEST_SIZE);
-    case CTRLBUS_CODE_SET_BASE_MOTOR:
-        result = expect(out, CTRLBUS_REQ_SET_BASE_MOTOR, len, CTRLBUS_SET_BASE_MOTOR_REQUEST_SIZE);
-        for (size_t i = 0; result == CTRLBUS_OK && i < CTRLBUS_MOTOR_SPEEDS; i++) {
-            out->as.set_base_motor.speeds_mm_s[i] = codec_take_s32(&args);
-        }
-        return result;
-    case CTRLBUS_CODE_SET_V_AND_GET_DEADRECKON:
-        result = expect(out, CTRLBUS_REQ_SET_V_AND_GET_DEADRECKON, len,
-                        CTRLBUS_SET_V_AND_GET_DEADRECKON_REQUEST_SIZE);
-        if (result == CTRLBUS_OK) {
-            out->as.set_v_and_get_deadreckon.vx_mps_q16 = codec_take_s32(&args);
-            out->as.set_v_and_get_deadreckon.vy_mps_q16 = codec_take_s32(&args);
-            out->as.set_v_and_get_deadreckon.omega_radps_q16 = codec_take_s32(&args);
-        }
-        return result;
-    case CTRLBUS_CODE_POLL_BASE_CMD:
-        return expect(out, CTRLBUS_REQ_POLL_BASE_CMD, len, CTRLBUS_PLAIN_REQUEST_SIZE);
-    case CTRLBUS_CODE_POLL_BASE_ANS_CMD:
-        return expect(out, CTRLBUS_REQ_POLL_BASE_ANS_CMD, len, CTRLBUS_PLAIN_REQUEST_SIZE);
-    case CTRLBUS_CODE_SEND_EVENT:
-        result = expect(out, CTRLBUS_REQ_SEND_EVENT, len, CTRLBUS_SEND_EVENT_REQUEST_SIZE);
-        if (result == CTRLBUS_OK) {
-            out->as.send_event.event = args[0];
-        }
-        return result;
-    case CTRLBUS_CODE_HEALTH_MGMT:
-        return len < 2 ? CTRLBUS_ERR_FORMAT : decode_health(out, payload, len);
-    default: return CTRLBUS_ERR_UNSUPPORTED; /* out->kind stays CTRLBUS_REQ_NONE */
+    }
+    out->kind = (ctrlbus_req_kind_t)CODEC_ROM_BYTE(&layout->kind);
+    if (len != CODEC_ROM_BYTE(&layout->size)) {
+        return CTRLBUS_ERR_FORMAT;
+    }
+    const uint8_t *args = payload + (health ? 2 : 1);
+    size_t args_len = len - (health ? 2u : 1u);
+    if (args_len == 1u) {
+        *(uint8_t *)(void *)&out->as = args[0];
+    }
+    /* int32_t and uint32_t words alike: int32_t is two's complement by definition */
+    uint32_t *words = (uint32_t *)(void *)&out->as;
+    for (size_t i = 0; i < args_len / 4u; i++) {
+        words[i] = codec_take_u32(&args);
+    }
+    switch (out->kind) {
+    case CTRLBUS_REQ_CONNECT_BASE:
+        return supported_if(codec_connect_version_known(out->as.connect_base.protocol_version));
+    case CTRLBUS_REQ_GET_CHARGER_DATA:
+        return supported_if(codec_charger_type_known(out->as.get_charger_data.data_type));
+    default: return CTRLBUS_OK;
     }
 }
 
@@ -198,14 +194,13 @@ int32_t ctrlbus_request_decode(ctrlbus_request_t *out, uint8_t cmd, const uint8_
         out->as.echo.data = payload;
         out->as.echo.data_len = len;
         return CTRLBUS_OK;
-    case CTRLBUS_CMD_BASE_CMD: {
-        int32_t result = expect(out, CTRLBUS_REQ_BASE_CMD, len, CTRLBUS_BASE_CMD_REQUEST_SIZE);
-        if (result == CTRLBUS_OK) {
-            out->as.base_cmd.subcommand = payload[0];
-            result = supported_if(codec_base_cmd_known(payload[0]));
+    case CTRLBUS_CMD_BASE_CMD:
+        out->kind = CTRLBUS_REQ_BASE_CMD;
+        if (len != CTRLBUS_BASE_CMD_REQUEST_SIZE) {
+            return CTRLBUS_ERR_FORMAT;
         }
-        return result;
-    }
+        out->as.base_cmd.subcommand = payload[0];
+        return supported_if(codec_base_cmd_known(payload[0]));
     case CTRLBUS_CMD_CTRL_BUS: return decode_ctrl_bus(out, payload, len);
     default: return CTRLBUS_ERR_UNSUPPORTED;
     }
@@ -213,7 +208,52 @@ int32_t ctrlbus_request_decode(ctrlbus_request_t *out, uint8_t cmd, const uint8_
 
 /* ---- answers: one encoder per layout -------------------------------------------------------- */
 
-int32_t ctrlbus_codec_write_ok(ctrlbus_sink_t *sink, int32_t size, ctrlbus_codec_put_fn put,
+/* The one field writer: walks a layout's fields until `size` bytes are out (the size, checked
+ * before, decides the optional tail fields and the short bumper form). Each value is read from
+ * the struct at the field's offset with the field's own type, and goes out through one call;
+ * text goes byte by byte (zeros after its NUL), so no deeper writer is on the stack. */
+void ctrlbus_codec_put_fields(ctrlbus_sink_t *sink, ctrlbus_codec_layout_t layout,
+                              const void *answer, size_t size)
+{
+    for (uint8_t kind; size > 0u && (kind = CODEC_ROM_BYTE(&layout->kind)) != FIELD_END;
+         layout++) {
+        const uint8_t *at = (const uint8_t *)answer + CODEC_ROM_BYTE(&layout->offset);
+        if (kind == FIELD_BYTES) {
+            ctrlbus_sink_put(sink, *(const uint8_t *const *)(const void *)at, size);
+            return; /* the rest of the payload */
+        }
+        size_t width = kind == FIELD_U32 ? 4u : kind == FIELD_U16 ? 2u : 1u;
+#if CODEC_HOST_LITTLE_ENDIAN
+        if (kind <= FIELD_U32) {
+            /* The run of integers is already in wire order in memory: one call for all. */
+            size_t run = CODEC_ROM_BYTE(&layout->count) * width;
+            run = run < size ? run : size;
+            ctrlbus_sink_put(sink, at, run);
+            size -= run;
+            continue;
+        }
+#endif
+        bool text_ended = false;
+        for (size_t count = CODEC_ROM_BYTE(&layout->count); count > 0u && size > 0u; count--, at += width) {
+            uint32_t value = width == 4u   ? *(const uint32_t *)(const void *)at
+                             : width == 2u ? *(const uint16_t *)(const void *)at
+                                           : at[0];
+            if (kind == FIELD_TEXT) {
+                text_ended = text_ended || value == 0u;
+                value = text_ended ? 0u : value;
+            } else if (kind == FIELD_POLL_COMMAND) { /* has_command, then the command */
+                value = value != 0u ? at[1] : CTRLBUS_POLL_NOTHING_PENDING;
+            }
+            uint8_t bytes[4] = {(uint8_t)(value & 0xFFu), (uint8_t)((value >> 8) & 0xFFu),
+                                (uint8_t)((value >> 16) & 0xFFu), (uint8_t)(value >> 24)};
+            size_t piece = width < size ? width : size; /* an answer may end inside a word */
+            ctrlbus_sink_put(sink, bytes, piece);
+            size -= piece;
+        }
+    }
+}
+
+int32_t ctrlbus_codec_write_ok(ctrlbus_sink_t *sink, int32_t size, ctrlbus_codec_layout_t layout,
                                const void *answer, ctrlbus_frame_type_t type)
 {
     if (size < 0) {
@@ -223,21 +263,21 @@ int32_t ctrlbus_codec_write_ok(ctrlbus_sink_t *sink, int32_t size, ctrlbus_codec
     if (result < 0) {
         return result;
     }
-    if (put != NULL) {
-        put(sink, answer);
+    if (layout != NULL) {
+        ctrlbus_codec_put_fields(sink, layout, answer, (size_t)size);
     }
     return ctrlbus_sink_end(sink);
 }
 
 /* The per-layout _put: the check, then the fields (a bad struct fails the sink's frame). */
-static void put_checked(ctrlbus_sink_t *sink, int32_t size, ctrlbus_codec_put_fn put,
+static void put_checked(ctrlbus_sink_t *sink, int32_t size, ctrlbus_codec_layout_t layout,
                         const void *answer)
 {
     if (size < 0) {
         ctrlbus_sink_fail(sink, size);
         return;
     }
-    put(sink, answer);
+    ctrlbus_codec_put_fields(sink, layout, answer, (size_t)size);
 }
 
 /* The size of a layout whose size and values cannot vary. */
@@ -268,24 +308,18 @@ int32_t ctrlbus_connect_base_answer_size(const ctrlbus_connect_base_answer_t *a)
                                           : CTRLBUS_CONNECT_BASE_ANSWER_SIZE;
 }
 
-void ctrlbus_codec_connect_base_fields(ctrlbus_sink_t *sink, const void *answer)
-{
-    const ctrlbus_connect_base_answer_t *a = answer;
-    ctrlbus_sink_put_text(sink, a->model, CTRLBUS_MODEL_LEN);
-    ctrlbus_sink_put_u16(sink, a->firmware_version);
-    ctrlbus_sink_put_u16(sink, a->hardware_version);
-    for (size_t i = 0; i < CTRLBUS_SERIAL_WORDS; i++) {
-        ctrlbus_sink_put_u32(sink, a->serial[i]);
-    }
-    if (a->has_firmware_version_suffix) {
-        ctrlbus_sink_put_text(sink, a->firmware_version_suffix,
-                              CTRLBUS_FIRMWARE_VERSION_SUFFIX_LEN);
-    }
-}
+const ctrlbus_codec_field_t ctrlbus_codec_connect_base_layout[] CODEC_ROM = {
+    {FIELD_TEXT, CTRLBUS_MODEL_LEN, (uint8_t)offsetof(ctrlbus_connect_base_answer_t, model)},
+    {FIELD_U16, 2, (uint8_t)offsetof(ctrlbus_connect_base_answer_t, firmware_version)}, /* + hw */
+    {FIELD_U32, CTRLBUS_SERIAL_WORDS, (uint8_t)offsetof(ctrlbus_connect_base_answer_t, serial)},
+    /* only in the 39-byte form: the size ends the walk before it */
+    {FIELD_TEXT, CTRLBUS_FIRMWARE_VERSION_SUFFIX_LEN, (uint8_t)offsetof(ctrlbus_connect_base_answer_t, firmware_version_suffix)},
+    {FIELD_END, 0, 0},
+};
 
 void ctrlbus_connect_base_answer_put(ctrlbus_sink_t *sink, const ctrlbus_connect_base_answer_t *a)
 {
-    put_checked(sink, ctrlbus_connect_base_answer_size(a), ctrlbus_codec_connect_base_fields, a);
+    put_checked(sink, ctrlbus_connect_base_answer_size(a), ctrlbus_codec_connect_base_layout, a);
 }
 
 int32_t ctrlbus_connect_base_answer_write(ctrlbus_sink_t *sink,
@@ -293,7 +327,7 @@ int32_t ctrlbus_connect_base_answer_write(ctrlbus_sink_t *sink,
                                           ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, ctrlbus_connect_base_answer_size(a),
-                                  ctrlbus_codec_connect_base_fields, a, type);
+                                  ctrlbus_codec_connect_base_layout, a, type);
 }
 
 /* GET_BASE_CONF */
@@ -306,28 +340,21 @@ int32_t ctrlbus_get_base_conf_answer_size(const ctrlbus_get_base_conf_answer_t *
     return CTRLBUS_GET_BASE_CONF_ANSWER_SIZE;
 }
 
-static void put_positions(ctrlbus_sink_t *sink, const ctrlbus_position_t *positions)
-{
-    for (size_t i = 0; i < CTRLBUS_CONF_SLOTS; i++) {
-        put_position(sink, &positions[i]);
-    }
-}
-
-void ctrlbus_codec_get_base_conf_fields(ctrlbus_sink_t *sink, const void *answer)
-{
-    const ctrlbus_get_base_conf_answer_t *a = answer;
-    ctrlbus_sink_put_u8(sink, a->base_type);
-    ctrlbus_sink_put_u32(sink, a->base_radius_mm_q8);
-    ctrlbus_sink_put_u8(sink, a->motor_type);
-    ctrlbus_sink_put_u8(sink, a->sensor_num);
-    put_positions(sink, a->sensors);
-    ctrlbus_sink_put_u8(sink, a->bumper_num);
-    put_positions(sink, a->bumpers);
-}
+const ctrlbus_codec_field_t ctrlbus_codec_get_base_conf_layout[] CODEC_ROM = {
+    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_base_conf_answer_t, base_type)},
+    {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_get_base_conf_answer_t, base_radius_mm_q8)},
+    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_base_conf_answer_t, motor_type)},
+    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_base_conf_answer_t, sensor_num)},
+    /* a position is four 32-bit words: the slots are one run of words */
+    {FIELD_U32, POSITION_WORDS, (uint8_t)offsetof(ctrlbus_get_base_conf_answer_t, sensors)},
+    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_base_conf_answer_t, bumper_num)},
+    {FIELD_U32, POSITION_WORDS, (uint8_t)offsetof(ctrlbus_get_base_conf_answer_t, bumpers)},
+    {FIELD_END, 0, 0},
+};
 
 void ctrlbus_get_base_conf_answer_put(ctrlbus_sink_t *sink, const ctrlbus_get_base_conf_answer_t *a)
 {
-    put_checked(sink, ctrlbus_get_base_conf_answer_size(a), ctrlbus_codec_get_base_conf_fields, a);
+    put_checked(sink, ctrlbus_get_base_conf_answer_size(a), ctrlbus_codec_get_base_conf_layout, a);
 }
 
 int32_t ctrlbus_get_base_conf_answer_write(ctrlbus_sink_t *sink,
@@ -335,7 +362,7 @@ int32_t ctrlbus_get_base_conf_answer_write(ctrlbus_sink_t *sink,
                                            ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, ctrlbus_get_base_conf_answer_size(a),
-                                  ctrlbus_codec_get_base_conf_fields, a, type);
+                                  ctrlbus_codec_get_base_conf_layout, a, type);
 }
 
 /* GET_BASE_CONF_ADV */
@@ -345,16 +372,15 @@ static int32_t get_base_conf_adv_size(const ctrlbus_get_base_conf_adv_answer_t *
     return a != NULL ? bytes_size(a->blob, a->blob_len) : CTRLBUS_ERR_ARGUMENT;
 }
 
-void ctrlbus_codec_get_base_conf_adv_fields(ctrlbus_sink_t *sink, const void *answer)
-{
-    const ctrlbus_get_base_conf_adv_answer_t *a = answer;
-    ctrlbus_sink_put(sink, a->blob, a->blob_len);
-}
+const ctrlbus_codec_field_t ctrlbus_codec_get_base_conf_adv_layout[] CODEC_ROM = {
+    {FIELD_BYTES, 0, (uint8_t)offsetof(ctrlbus_get_base_conf_adv_answer_t, blob)},
+    {FIELD_END, 0, 0},
+};
 
 void ctrlbus_get_base_conf_adv_answer_put(ctrlbus_sink_t *sink,
                                           const ctrlbus_get_base_conf_adv_answer_t *a)
 {
-    put_checked(sink, get_base_conf_adv_size(a), ctrlbus_codec_get_base_conf_adv_fields, a);
+    put_checked(sink, get_base_conf_adv_size(a), ctrlbus_codec_get_base_conf_adv_layout, a);
 }
 
 int32_t ctrlbus_get_base_conf_adv_answer_write(ctrlbus_sink_t *sink,
@@ -362,23 +388,22 @@ int32_t ctrlbus_get_base_conf_adv_answer_write(ctrlbus_sink_t *sink,
                                                ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, get_base_conf_adv_size(a),
-                                  ctrlbus_codec_get_base_conf_adv_fields, a, type);
+                                  ctrlbus_codec_get_base_conf_adv_layout, a, type);
 }
 
 /* GET_BASE_STATUS */
 
-void ctrlbus_codec_get_base_status_fields(ctrlbus_sink_t *sink, const void *answer)
-{
-    const ctrlbus_get_base_status_answer_t *a = answer;
-    ctrlbus_sink_put_u8(sink, a->battery_percent);
-    ctrlbus_sink_put_u8(sink, a->power_status);
-}
+const ctrlbus_codec_field_t ctrlbus_codec_get_base_status_layout[] CODEC_ROM = {
+    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_base_status_answer_t, battery_percent)},
+    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_base_status_answer_t, power_status)},
+    {FIELD_END, 0, 0},
+};
 
 void ctrlbus_get_base_status_answer_put(ctrlbus_sink_t *sink,
                                         const ctrlbus_get_base_status_answer_t *a)
 {
     put_checked(sink, fixed_size(a, CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE),
-                ctrlbus_codec_get_base_status_fields, a);
+                ctrlbus_codec_get_base_status_layout, a);
 }
 
 int32_t ctrlbus_get_base_status_answer_write(ctrlbus_sink_t *sink,
@@ -386,24 +411,22 @@ int32_t ctrlbus_get_base_status_answer_write(ctrlbus_sink_t *sink,
                                              ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, fixed_size(a, CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE),
-                                  ctrlbus_codec_get_base_status_fields, a, type);
+                                  ctrlbus_codec_get_base_status_layout, a, type);
 }
 
 /* GET_BASE_MOTOR_DATA */
 
-void ctrlbus_codec_get_base_motor_data_fields(ctrlbus_sink_t *sink, const void *answer)
-{
-    const ctrlbus_get_base_motor_data_answer_t *a = answer;
-    ctrlbus_sink_put_s32(sink, a->left_distance_mm);
-    ctrlbus_sink_put_s32(sink, a->right_distance_mm);
-    ctrlbus_sink_put_u8(sink, a->status);
-}
+const ctrlbus_codec_field_t ctrlbus_codec_get_base_motor_data_layout[] CODEC_ROM = {
+    {FIELD_U32, 2, (uint8_t)offsetof(ctrlbus_get_base_motor_data_answer_t, left_distance_mm)},
+    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_base_motor_data_answer_t, status)},
+    {FIELD_END, 0, 0},
+};
 
 void ctrlbus_get_base_motor_data_answer_put(ctrlbus_sink_t *sink,
                                             const ctrlbus_get_base_motor_data_answer_t *a)
 {
     put_checked(sink, fixed_size(a, CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE),
-                ctrlbus_codec_get_base_motor_data_fields, a);
+                ctrlbus_codec_get_base_motor_data_layout, a);
 }
 
 int32_t ctrlbus_get_base_motor_data_answer_write(ctrlbus_sink_t *sink,
@@ -411,24 +434,21 @@ int32_t ctrlbus_get_base_motor_data_answer_write(ctrlbus_sink_t *sink,
                                                  ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, fixed_size(a, CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE),
-                                  ctrlbus_codec_get_base_motor_data_fields, a, type);
+                                  ctrlbus_codec_get_base_motor_data_layout, a, type);
 }
 
 /* GET_BASE_SENSOR_DATA */
 
-void ctrlbus_codec_get_base_sensor_data_fields(ctrlbus_sink_t *sink, const void *answer)
-{
-    const ctrlbus_get_base_sensor_data_answer_t *a = answer;
-    for (size_t i = 0; i < CTRLBUS_SENSOR_CHANNELS; i++) {
-        ctrlbus_sink_put_u32(sink, a->distances_mm_q16[i]);
-    }
-}
+const ctrlbus_codec_field_t ctrlbus_codec_get_base_sensor_data_layout[] CODEC_ROM = {
+    {FIELD_U32, CTRLBUS_SENSOR_CHANNELS, (uint8_t)offsetof(ctrlbus_get_base_sensor_data_answer_t, distances_mm_q16)},
+    {FIELD_END, 0, 0},
+};
 
 void ctrlbus_get_base_sensor_data_answer_put(ctrlbus_sink_t *sink,
                                              const ctrlbus_get_base_sensor_data_answer_t *a)
 {
     put_checked(sink, fixed_size(a, CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE),
-                ctrlbus_codec_get_base_sensor_data_fields, a);
+                ctrlbus_codec_get_base_sensor_data_layout, a);
 }
 
 int32_t ctrlbus_get_base_sensor_data_answer_write(ctrlbus_sink_t *sink,
@@ -436,7 +456,7 @@ int32_t ctrlbus_get_base_sensor_data_answer_write(ctrlbus_sink_t *sink,
                                                   ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, fixed_size(a, CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE),
-                                  ctrlbus_codec_get_base_sensor_data_fields, a, type);
+                                  ctrlbus_codec_get_base_sensor_data_layout, a, type);
 }
 
 /* GET_BASE_BUMPER_DATA */
@@ -453,19 +473,17 @@ int32_t ctrlbus_get_base_bumper_data_answer_size(const ctrlbus_get_base_bumper_d
     return a->payload_size;
 }
 
-void ctrlbus_codec_get_base_bumper_data_fields(ctrlbus_sink_t *sink, const void *answer)
-{
-    const ctrlbus_get_base_bumper_data_answer_t *a = answer;
-    for (uint8_t i = 0; i < a->payload_size; i++) {
-        ctrlbus_sink_put_u8(sink, (uint8_t)((a->bitmap >> (8u * i)) & 0xFFu));
-    }
-}
+const ctrlbus_codec_field_t ctrlbus_codec_get_base_bumper_data_layout[] CODEC_ROM = {
+    /* payload_size (1..4) low bytes of the bitmap: the size cuts the word short */
+    {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_get_base_bumper_data_answer_t, bitmap)},
+    {FIELD_END, 0, 0},
+};
 
 void ctrlbus_get_base_bumper_data_answer_put(ctrlbus_sink_t *sink,
                                              const ctrlbus_get_base_bumper_data_answer_t *a)
 {
     put_checked(sink, ctrlbus_get_base_bumper_data_answer_size(a),
-                ctrlbus_codec_get_base_bumper_data_fields, a);
+                ctrlbus_codec_get_base_bumper_data_layout, a);
 }
 
 int32_t ctrlbus_get_base_bumper_data_answer_write(ctrlbus_sink_t *sink,
@@ -473,7 +491,7 @@ int32_t ctrlbus_get_base_bumper_data_answer_write(ctrlbus_sink_t *sink,
                                                   ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, ctrlbus_get_base_bumper_data_answer_size(a),
-                                  ctrlbus_codec_get_base_bumper_data_fields, a, type);
+                                  ctrlbus_codec_get_base_bumper_data_layout, a, type);
 }
 
 /* GET_CHARGER_DATA */
@@ -486,19 +504,18 @@ int32_t ctrlbus_get_charger_data_answer_size(const ctrlbus_get_charger_data_answ
     return (int32_t)CTRLBUS_GET_CHARGER_DATA_ANSWER_MIN + a->probe_count;
 }
 
-void ctrlbus_codec_get_charger_data_fields(ctrlbus_sink_t *sink, const void *answer)
-{
-    const ctrlbus_get_charger_data_answer_t *a = answer;
-    ctrlbus_sink_put_u8(sink, a->beacon_count);
-    ctrlbus_sink_put_u8(sink, a->probe_count);
-    ctrlbus_sink_put(sink, a->probes, a->probe_count);
-}
+const ctrlbus_codec_field_t ctrlbus_codec_get_charger_data_layout[] CODEC_ROM = {
+    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_charger_data_answer_t, beacon_count)},
+    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_charger_data_answer_t, probe_count)},
+    {FIELD_BYTES, 0, (uint8_t)offsetof(ctrlbus_get_charger_data_answer_t, probes)},
+    {FIELD_END, 0, 0},
+};
 
 void ctrlbus_get_charger_data_answer_put(ctrlbus_sink_t *sink,
                                          const ctrlbus_get_charger_data_answer_t *a)
 {
     put_checked(sink, ctrlbus_get_charger_data_answer_size(a),
-                ctrlbus_codec_get_charger_data_fields, a);
+                ctrlbus_codec_get_charger_data_layout, a);
 }
 
 int32_t ctrlbus_get_charger_data_answer_write(ctrlbus_sink_t *sink,
@@ -506,7 +523,7 @@ int32_t ctrlbus_get_charger_data_answer_write(ctrlbus_sink_t *sink,
                                               ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, ctrlbus_get_charger_data_answer_size(a),
-                                  ctrlbus_codec_get_charger_data_fields, a, type);
+                                  ctrlbus_codec_get_charger_data_layout, a, type);
 }
 
 /* SET_V_AND_GET_DEADRECKON */
@@ -521,23 +538,19 @@ int32_t ctrlbus_set_v_and_get_deadreckon_answer_size(
                                : CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE;
 }
 
-void ctrlbus_codec_set_v_and_get_deadreckon_fields(ctrlbus_sink_t *sink, const void *answer)
-{
-    const ctrlbus_set_v_and_get_deadreckon_answer_t *a = answer;
-    ctrlbus_sink_put_s32(sink, a->dx_mm_q16);
-    ctrlbus_sink_put_s32(sink, a->dy_mm_q16);
-    ctrlbus_sink_put_s32(sink, a->dtheta_deg_q16);
-    ctrlbus_sink_put_u8(sink, a->status);
-    if (a->has_timestamp_ms) {
-        ctrlbus_sink_put_u32(sink, a->timestamp_ms);
-    }
-}
+const ctrlbus_codec_field_t ctrlbus_codec_set_v_and_get_deadreckon_layout[] CODEC_ROM = {
+    {FIELD_U32, 3, (uint8_t)offsetof(ctrlbus_set_v_and_get_deadreckon_answer_t, dx_mm_q16)},
+    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_set_v_and_get_deadreckon_answer_t, status)},
+    /* only in the 17-byte form: the size ends the walk before it */
+    {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_set_v_and_get_deadreckon_answer_t, timestamp_ms)},
+    {FIELD_END, 0, 0},
+};
 
 void ctrlbus_set_v_and_get_deadreckon_answer_put(
     ctrlbus_sink_t *sink, const ctrlbus_set_v_and_get_deadreckon_answer_t *a)
 {
     put_checked(sink, ctrlbus_set_v_and_get_deadreckon_answer_size(a),
-                ctrlbus_codec_set_v_and_get_deadreckon_fields, a);
+                ctrlbus_codec_set_v_and_get_deadreckon_layout, a);
 }
 
 int32_t ctrlbus_set_v_and_get_deadreckon_answer_write(
@@ -545,7 +558,7 @@ int32_t ctrlbus_set_v_and_get_deadreckon_answer_write(
     ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, ctrlbus_set_v_and_get_deadreckon_answer_size(a),
-                                  ctrlbus_codec_set_v_and_get_deadreckon_fields, a, type);
+                                  ctrlbus_codec_set_v_and_get_deadreckon_layout, a, type);
 }
 
 /* POLL_BASE_CMD */
@@ -565,18 +578,16 @@ int32_t ctrlbus_poll_base_cmd_answer_size(const ctrlbus_poll_base_cmd_answer_t *
     return CTRLBUS_POLL_BASE_CMD_ANSWER_SIZE;
 }
 
-void ctrlbus_codec_poll_base_cmd_fields(ctrlbus_sink_t *sink, const void *answer)
-{
-    const ctrlbus_poll_base_cmd_answer_t *a = answer;
-    if (a->payload_size > 0) {
-        ctrlbus_sink_put_u8(sink, a->has_command ? a->command : CTRLBUS_POLL_NOTHING_PENDING);
-        ctrlbus_sink_put_u8(sink, a->pad);
-    }
-}
+const ctrlbus_codec_field_t ctrlbus_codec_poll_base_cmd_layout[] CODEC_ROM = {
+    /* payload_size 0: the size ends the walk at once */
+    {FIELD_POLL_COMMAND, 1, (uint8_t)offsetof(ctrlbus_poll_base_cmd_answer_t, has_command)},
+    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_poll_base_cmd_answer_t, pad)},
+    {FIELD_END, 0, 0},
+};
 
 void ctrlbus_poll_base_cmd_answer_put(ctrlbus_sink_t *sink, const ctrlbus_poll_base_cmd_answer_t *a)
 {
-    put_checked(sink, ctrlbus_poll_base_cmd_answer_size(a), ctrlbus_codec_poll_base_cmd_fields, a);
+    put_checked(sink, ctrlbus_poll_base_cmd_answer_size(a), ctrlbus_codec_poll_base_cmd_layout, a);
 }
 
 int32_t ctrlbus_poll_base_cmd_answer_write(ctrlbus_sink_t *sink,
@@ -584,23 +595,22 @@ int32_t ctrlbus_poll_base_cmd_answer_write(ctrlbus_sink_t *sink,
                                            ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, ctrlbus_poll_base_cmd_answer_size(a),
-                                  ctrlbus_codec_poll_base_cmd_fields, a, type);
+                                  ctrlbus_codec_poll_base_cmd_layout, a, type);
 }
 
 /* HEALTH_GET_HEALTH */
 
-void ctrlbus_codec_health_get_health_fields(ctrlbus_sink_t *sink, const void *answer)
-{
-    const ctrlbus_health_get_health_answer_t *a = answer;
-    ctrlbus_sink_put_u8(sink, a->flags);
-    ctrlbus_sink_put_u8(sink, a->error_count);
-}
+const ctrlbus_codec_field_t ctrlbus_codec_health_get_health_layout[] CODEC_ROM = {
+    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_health_get_health_answer_t, flags)},
+    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_health_get_health_answer_t, error_count)},
+    {FIELD_END, 0, 0},
+};
 
 void ctrlbus_health_get_health_answer_put(ctrlbus_sink_t *sink,
                                           const ctrlbus_health_get_health_answer_t *a)
 {
     put_checked(sink, fixed_size(a, CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE),
-                ctrlbus_codec_health_get_health_fields, a);
+                ctrlbus_codec_health_get_health_layout, a);
 }
 
 int32_t ctrlbus_health_get_health_answer_write(ctrlbus_sink_t *sink,
@@ -608,7 +618,7 @@ int32_t ctrlbus_health_get_health_answer_write(ctrlbus_sink_t *sink,
                                                ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, fixed_size(a, CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE),
-                                  ctrlbus_codec_health_get_health_fields, a, type);
+                                  ctrlbus_codec_health_get_health_layout, a, type);
 }
 
 /* HEALTH_GET_ERROR */
@@ -623,18 +633,17 @@ int32_t ctrlbus_health_get_error_answer_size(const ctrlbus_health_get_error_answ
     return CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE;
 }
 
-void ctrlbus_codec_health_get_error_fields(ctrlbus_sink_t *sink, const void *answer)
-{
-    const ctrlbus_health_get_error_answer_t *a = answer;
-    ctrlbus_sink_put_u32(sink, a->error_code);
-    ctrlbus_sink_put_text(sink, a->message, CTRLBUS_HEALTH_MESSAGE_LEN);
-}
+const ctrlbus_codec_field_t ctrlbus_codec_health_get_error_layout[] CODEC_ROM = {
+    {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_health_get_error_answer_t, error_code)},
+    {FIELD_TEXT, CTRLBUS_HEALTH_MESSAGE_LEN, (uint8_t)offsetof(ctrlbus_health_get_error_answer_t, message)},
+    {FIELD_END, 0, 0},
+};
 
 void ctrlbus_health_get_error_answer_put(ctrlbus_sink_t *sink,
                                          const ctrlbus_health_get_error_answer_t *a)
 {
     put_checked(sink, ctrlbus_health_get_error_answer_size(a),
-                ctrlbus_codec_health_get_error_fields, a);
+                ctrlbus_codec_health_get_error_layout, a);
 }
 
 int32_t ctrlbus_health_get_error_answer_write(ctrlbus_sink_t *sink,
@@ -642,7 +651,7 @@ int32_t ctrlbus_health_get_error_answer_write(ctrlbus_sink_t *sink,
                                               ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, ctrlbus_health_get_error_answer_size(a),
-                                  ctrlbus_codec_health_get_error_fields, a, type);
+                                  ctrlbus_codec_health_get_error_layout, a, type);
 }
 
 /* Empty OK answers and ERROR answers. */
@@ -678,62 +687,62 @@ const char *ctrlbus_answer_name(ctrlbus_answer_kind_t kind)
 }
 
 /* The OK answer's layout: its size (negative: the struct cannot be encoded) and fields writer. */
-static int32_t ok_layout(const ctrlbus_answer_t *a, ctrlbus_codec_put_fn *put)
+static int32_t ok_layout(const ctrlbus_answer_t *a, ctrlbus_codec_layout_t *layout)
 {
-    *put = NULL;
+    *layout = NULL;
     if (codec_has_empty_ok(a->to)) {
         return 0;
     }
     switch (a->to) {
     case CTRLBUS_REQ_CONNECT_BASE:
-        *put = ctrlbus_codec_connect_base_fields;
+        *layout = ctrlbus_codec_connect_base_layout;
         return ctrlbus_connect_base_answer_size(&a->as.connect_base);
     case CTRLBUS_REQ_GET_BASE_CONF:
-        *put = ctrlbus_codec_get_base_conf_fields;
+        *layout = ctrlbus_codec_get_base_conf_layout;
         return ctrlbus_get_base_conf_answer_size(&a->as.get_base_conf);
     case CTRLBUS_REQ_GET_BASE_CONF_ADV:
-        *put = ctrlbus_codec_get_base_conf_adv_fields;
+        *layout = ctrlbus_codec_get_base_conf_adv_layout;
         return get_base_conf_adv_size(&a->as.get_base_conf_adv);
     case CTRLBUS_REQ_GET_BASE_STATUS:
-        *put = ctrlbus_codec_get_base_status_fields;
+        *layout = ctrlbus_codec_get_base_status_layout;
         return CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE;
     case CTRLBUS_REQ_GET_BASE_MOTOR_DATA:
-        *put = ctrlbus_codec_get_base_motor_data_fields;
+        *layout = ctrlbus_codec_get_base_motor_data_layout;
         return CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE;
     case CTRLBUS_REQ_GET_BASE_SENSOR_DATA:
-        *put = ctrlbus_codec_get_base_sensor_data_fields;
+        *layout = ctrlbus_codec_get_base_sensor_data_layout;
         return CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE;
     case CTRLBUS_REQ_GET_BASE_BUMPER_DATA:
-        *put = ctrlbus_codec_get_base_bumper_data_fields;
+        *layout = ctrlbus_codec_get_base_bumper_data_layout;
         return ctrlbus_get_base_bumper_data_answer_size(&a->as.get_base_bumper_data);
     case CTRLBUS_REQ_GET_CHARGER_DATA:
-        *put = ctrlbus_codec_get_charger_data_fields;
+        *layout = ctrlbus_codec_get_charger_data_layout;
         return ctrlbus_get_charger_data_answer_size(&a->as.get_charger_data);
     case CTRLBUS_REQ_SET_V_AND_GET_DEADRECKON:
-        *put = ctrlbus_codec_set_v_and_get_deadreckon_fields;
+        *layout = ctrlbus_codec_set_v_and_get_deadreckon_layout;
         return ctrlbus_set_v_and_get_deadreckon_answer_size(&a->as.set_v_and_get_deadreckon);
     case CTRLBUS_REQ_POLL_BASE_CMD:
-        *put = ctrlbus_codec_poll_base_cmd_fields;
+        *layout = ctrlbus_codec_poll_base_cmd_layout;
         return ctrlbus_poll_base_cmd_answer_size(&a->as.poll_base_cmd);
     case CTRLBUS_REQ_HEALTH_GET_HEALTH:
-        *put = ctrlbus_codec_health_get_health_fields;
+        *layout = ctrlbus_codec_health_get_health_layout;
         return CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE;
     case CTRLBUS_REQ_HEALTH_GET_ERROR:
-        *put = ctrlbus_codec_health_get_error_fields;
+        *layout = ctrlbus_codec_health_get_error_layout;
         return ctrlbus_health_get_error_answer_size(&a->as.health_get_error);
     default: return CTRLBUS_ERR_ARGUMENT; /* SYNC, ECHO, GET_AUXILIARY_ANCHOR: no OK layout */
     }
 }
 
 /* Size of an answer of any kind, and (for a non-empty OK payload) its fields writer. */
-static int32_t answer_layout(const ctrlbus_answer_t *answer, ctrlbus_codec_put_fn *put)
+static int32_t answer_layout(const ctrlbus_answer_t *answer, ctrlbus_codec_layout_t *layout)
 {
-    *put = NULL;
+    *layout = NULL;
     if (answer == NULL) {
         return CTRLBUS_ERR_ARGUMENT;
     }
     switch (answer->kind) {
-    case CTRLBUS_ANSWER_OK: return ok_layout(answer, put);
+    case CTRLBUS_ANSWER_OK: return ok_layout(answer, layout);
     case CTRLBUS_ANSWER_ERROR: return CTRLBUS_ERROR_ANSWER_SIZE;
     case CTRLBUS_ANSWER_INVALID: return 0;
     case CTRLBUS_ANSWER_SYNC:
@@ -745,8 +754,8 @@ static int32_t answer_layout(const ctrlbus_answer_t *answer, ctrlbus_codec_put_f
 
 int32_t ctrlbus_answer_payload_size(const ctrlbus_answer_t *answer)
 {
-    ctrlbus_codec_put_fn put;
-    return answer_layout(answer, &put);
+    ctrlbus_codec_layout_t layout;
+    return answer_layout(answer, &layout);
 }
 
 int32_t ctrlbus_answer_write(ctrlbus_sink_t *sink, const ctrlbus_answer_t *answer,
@@ -757,8 +766,8 @@ int32_t ctrlbus_answer_write(ctrlbus_sink_t *sink, const ctrlbus_answer_t *answe
         [CTRLBUS_ANSWER_INVALID] = CTRLBUS_CMD_INVALID, [CTRLBUS_ANSWER_SYNC] = CTRLBUS_CMD_SYNC,
         [CTRLBUS_ANSWER_ECHO] = CTRLBUS_CMD_ECHO,
     };
-    ctrlbus_codec_put_fn put;
-    int32_t size = answer_layout(answer, &put);
+    ctrlbus_codec_layout_t layout;
+    int32_t size = answer_layout(answer, &layout);
     if (size < 0) {
         return size;
     }
@@ -768,8 +777,8 @@ int32_t ctrlbus_answer_write(ctrlbus_sink_t *sink, const ctrlbus_answer_t *answe
     }
     switch (answer->kind) {
     case CTRLBUS_ANSWER_OK:
-        if (put != NULL) {
-            put(sink, &answer->as);
+        if (layout != NULL) {
+            ctrlbus_codec_put_fields(sink, layout, &answer->as, (size_t)size);
         }
         break;
     case CTRLBUS_ANSWER_ERROR: ctrlbus_sink_put_u16(sink, answer->as.error.error_code); break;

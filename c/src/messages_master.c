@@ -56,51 +56,11 @@ static int32_t check_decode(const void *out, const uint8_t *payload, size_t len,
 
 /* ---- requests ------------------------------------------------------------------------------- */
 
-/* The control-bus requests: how each travels in a CMD 0xF8 payload. */
-typedef struct {
-    uint8_t kind; /* ctrlbus_req_kind_t */
-    uint8_t code;
-    uint8_t subcommand; /* HEALTH_MGMT only */
-    uint8_t size;       /* whole payload, code (and sub-command) included */
-} ctrl_bus_layout_t;
-
-static const ctrl_bus_layout_t CTRL_BUS_LAYOUTS[] = {
-    {CTRLBUS_REQ_CONNECT_BASE, CTRLBUS_CODE_CONNECT_BASE, 0, CTRLBUS_CONNECT_BASE_REQUEST_SIZE},
-    {CTRLBUS_REQ_GET_BASE_CONF, CTRLBUS_CODE_GET_BASE_CONF, 0, CTRLBUS_PLAIN_REQUEST_SIZE},
-    {CTRLBUS_REQ_GET_BASE_CONF_ADV, CTRLBUS_CODE_GET_BASE_CONF_ADV, 0, CTRLBUS_PLAIN_REQUEST_SIZE},
-    {CTRLBUS_REQ_GET_BASE_STATUS, CTRLBUS_CODE_GET_BASE_STATUS, 0, CTRLBUS_PLAIN_REQUEST_SIZE},
-    {CTRLBUS_REQ_GET_BASE_MOTOR_DATA, CTRLBUS_CODE_GET_BASE_MOTOR_DATA, 0,
-     CTRLBUS_PLAIN_REQUEST_SIZE},
-    {CTRLBUS_REQ_GET_BASE_SENSOR_DATA, CTRLBUS_CODE_GET_BASE_SENSOR_DATA, 0,
-     CTRLBUS_PLAIN_REQUEST_SIZE},
-    {CTRLBUS_REQ_GET_BASE_BUMPER_DATA, CTRLBUS_CODE_GET_BASE_BUMPER_DATA, 0,
-     CTRLBUS_PLAIN_REQUEST_SIZE},
-    {CTRLBUS_REQ_GET_CHARGER_DATA, CTRLBUS_CODE_GET_CHARGER_DATA, 0,
-     CTRLBUS_GET_CHARGER_DATA_REQUEST_SIZE},
-    {CTRLBUS_REQ_GET_AUXILIARY_ANCHOR, CTRLBUS_CODE_GET_AUXILIARY_ANCHOR, 0,
-     CTRLBUS_PLAIN_REQUEST_SIZE},
-    {CTRLBUS_REQ_SET_BASE_MOTOR, CTRLBUS_CODE_SET_BASE_MOTOR, 0,
-     CTRLBUS_SET_BASE_MOTOR_REQUEST_SIZE},
-    {CTRLBUS_REQ_SET_V_AND_GET_DEADRECKON, CTRLBUS_CODE_SET_V_AND_GET_DEADRECKON, 0,
-     CTRLBUS_SET_V_AND_GET_DEADRECKON_REQUEST_SIZE},
-    {CTRLBUS_REQ_POLL_BASE_CMD, CTRLBUS_CODE_POLL_BASE_CMD, 0, CTRLBUS_PLAIN_REQUEST_SIZE},
-    {CTRLBUS_REQ_POLL_BASE_ANS_CMD, CTRLBUS_CODE_POLL_BASE_ANS_CMD, 0, CTRLBUS_PLAIN_REQUEST_SIZE},
-    {CTRLBUS_REQ_SEND_EVENT, CTRLBUS_CODE_SEND_EVENT, 0, CTRLBUS_SEND_EVENT_REQUEST_SIZE},
-    {CTRLBUS_REQ_HEALTH_GET_HEALTH, CTRLBUS_CODE_HEALTH_MGMT, CTRLBUS_HEALTH_SUB_GET_HEALTH,
-     CTRLBUS_HEALTH_GET_HEALTH_REQUEST_SIZE},
-    {CTRLBUS_REQ_HEALTH_GET_ERROR, CTRLBUS_CODE_HEALTH_MGMT, CTRLBUS_HEALTH_SUB_GET_ERROR,
-     CTRLBUS_HEALTH_GET_ERROR_REQUEST_SIZE},
-    {CTRLBUS_REQ_HEALTH_CLR_ERROR, CTRLBUS_CODE_HEALTH_MGMT, CTRLBUS_HEALTH_SUB_CLR_ERROR,
-     CTRLBUS_HEALTH_CLR_ERROR_REQUEST_SIZE},
-};
-
-#define CTRL_BUS_LAYOUT_COUNT (sizeof CTRL_BUS_LAYOUTS / sizeof CTRL_BUS_LAYOUTS[0])
-
-static const ctrl_bus_layout_t *layout_of_kind(ctrlbus_req_kind_t kind)
+static const ctrlbus_codec_request_layout_t *layout_of_kind(ctrlbus_req_kind_t kind)
 {
-    for (size_t i = 0; i < CTRL_BUS_LAYOUT_COUNT; i++) {
-        if (CTRL_BUS_LAYOUTS[i].kind == (uint8_t)kind) {
-            return &CTRL_BUS_LAYOUTS[i];
+    for (size_t i = 0; i < CTRLBUS_CODEC_REQUEST_LAYOUTS; i++) {
+        if (CODEC_ROM_BYTE(&ctrlbus_codec_request_layouts[i].kind) == (uint8_t)kind) {
+            return &ctrlbus_codec_request_layouts[i];
         }
     }
     return NULL;
@@ -147,8 +107,8 @@ int32_t ctrlbus_request_payload_size(const ctrlbus_request_t *request)
         break;
     case CTRLBUS_REQ_BASE_CMD: return CTRLBUS_BASE_CMD_REQUEST_SIZE;
     default: {
-        const ctrl_bus_layout_t *layout = layout_of_kind(request->kind);
-        return layout != NULL ? (int32_t)layout->size : CTRLBUS_ERR_ARGUMENT;
+        const ctrlbus_codec_request_layout_t *layout = layout_of_kind(request->kind);
+        return layout != NULL ? (int32_t)CODEC_ROM_BYTE(&layout->size) : CTRLBUS_ERR_ARGUMENT;
     }
     }
     if (bytes == NULL && len > 0) {
@@ -159,11 +119,12 @@ int32_t ctrlbus_request_payload_size(const ctrlbus_request_t *request)
 
 static void put_request_payload(ctrlbus_sink_t *sink, const ctrlbus_request_t *request)
 {
-    const ctrl_bus_layout_t *layout = layout_of_kind(request->kind);
+    const ctrlbus_codec_request_layout_t *layout = layout_of_kind(request->kind);
     if (layout != NULL) {
-        ctrlbus_sink_put_u8(sink, layout->code);
-        if (layout->code == CTRLBUS_CODE_HEALTH_MGMT) {
-            ctrlbus_sink_put_u8(sink, layout->subcommand);
+        uint8_t code = CODEC_ROM_BYTE(&layout->code);
+        ctrlbus_sink_put_u8(sink, code);
+        if (code == CTRLBUS_CODE_HEALTH_MGMT) {
+            ctrlbus_sink_put_u8(sink, CODEC_ROM_BYTE(&layout->subcommand));
         }
     }
     switch (request->kind) {

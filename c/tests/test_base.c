@@ -100,15 +100,17 @@ static int32_t app_connect(void *context, ctrlbus_connect_base_answer_t *out)
     return app.fail_with;
 }
 
-static int32_t app_base_config(void *context, ctrlbus_get_base_conf_answer_t *out)
+/* GET_BASE_CONF's answer: the application's struct, streamed from where it is. */
+static ctrlbus_get_base_conf_answer_t app_base_conf;
+
+static void app_base_conf_reset(void)
 {
-    (void)context;
-    out->base_radius_mm_q8 = 170u * 256u;
-    out->sensor_num = 1;
-    out->sensors[0].x_mm_q8 = 170 * 256;
-    out->bumper_num = 2;
-    out->bumpers[1].angle_deg_q8 = 315u * 256u;
-    return app.fail_with;
+    memset(&app_base_conf, 0, sizeof app_base_conf);
+    app_base_conf.base_radius_mm_q8 = 170u * 256u;
+    app_base_conf.sensor_num = 1;
+    app_base_conf.sensors[0].x_mm_q8 = 170 * 256;
+    app_base_conf.bumper_num = 2;
+    app_base_conf.bumpers[1].angle_deg_q8 = 315u * 256u;
 }
 
 static int32_t app_status(void *context, ctrlbus_get_base_status_answer_t *out)
@@ -246,7 +248,8 @@ static ctrlbus_base_config_t full_config(void)
     c.decoder_stats = &decoder_stats;
     c.write = capture_write;
     c.connect_info = app_connect;
-    c.base_config = app_base_config;
+    app_base_conf_reset();
+    c.base_conf = &app_base_conf;
     c.status = app_status;
     c.motor_data = app_motor_data;
     c.sensor_data = app_sensor_data;
@@ -675,7 +678,7 @@ static void test_unimplemented_requests_are_answered_unsupported(void)
     setup();
     ctrlbus_base_config_t empty = full_config();
     empty.connect_info = NULL;
-    empty.base_config = NULL;
+    empty.base_conf = NULL;
     empty.binary_config = NULL;
     empty.status = NULL;
     empty.motor_data = NULL;
@@ -728,7 +731,7 @@ static void test_handler_failures(void)
 {
     setup();
     app.fail_with = CTRLBUS_ERR_IO;
-    static const char *const REQUESTS[] = {"10 01", "20", "30", "31", "32", "33", "34 00", "60 01"};
+    static const char *const REQUESTS[] = {"10 01", "30", "31", "32", "33", "34 00", "60 01"};
     for (size_t i = 0; i < sizeof REQUESTS / sizeof REQUESTS[0]; i++) {
         harness_context("%s", REQUESTS[i]);
         request_hex(REQUESTS[i]);
@@ -749,6 +752,18 @@ static void test_handler_failures(void)
     app.model_not_ascii = true;
     request_hex("10 01");
     expect_error(CTRLBUS_WIRE_ERR_OPERATION);
+    /* So is a GET_BASE_CONF struct with more than 8 sensors; the struct is read as it is now. */
+    app_base_conf.sensor_num = CTRLBUS_CONF_SLOTS + 1u;
+    request_hex("20");
+    expect_error(CTRLBUS_WIRE_ERR_OPERATION);
+    app_base_conf.sensor_num = 2;
+    request_hex("20");
+    answer_t a;
+    if (next_answer(&a)) {
+        CHECK_EQ(a.cmd, CTRLBUS_CMD_OK);
+        CHECK_EQ(a.len, CTRLBUS_GET_BASE_CONF_ANSWER_SIZE);
+        CHECK_EQ(a.payload[5 + 1], 2); /* base_type u8, radius u32, motor_type u8, sensor_num */
+    }
     expect_nothing_more();
 }
 

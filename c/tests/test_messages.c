@@ -839,7 +839,7 @@ static void test_streamed_answer_matches_buffer_encoding(void)
     static uint8_t out[300];
     CHECK_EQ(ctrlbus_answer_encode(out, sizeof out, &a, CTRLBUS_FRAME_LONG), 269);
     CHECK_MEM(capture.bytes, capture.len, out, 269);
-    CHECK(capture.calls > 10);
+    CHECK(capture.calls > 5); /* streamed in pieces (header, fields, runs of words), not built */
 
     /* Announcing the 13-byte deadreckon size but putting the 17-byte form fails. */
     ctrlbus_set_v_and_get_deadreckon_answer_t dr;

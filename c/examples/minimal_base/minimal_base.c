@@ -75,12 +75,9 @@ static int32_t connect_info(void *context, ctrlbus_connect_base_answer_t *out)
     return CTRLBUS_OK;
 }
 
-static int32_t base_config(void *context, ctrlbus_get_base_conf_answer_t *out)
-{
-    (void)context; /* round (type 0), two-wheel differential (motor type 0), no sensor, no bumper */
-    out->base_radius_mm_q8 = 170u * 256u;
-    return CTRLBUS_OK;
-}
+/* GET_BASE_CONF: round (type 0), radius 170 mm, two-wheel differential (motor type 0), no sensor,
+ * no bumper. A constant: the stack streams it from flash. */
+static const ctrlbus_get_base_conf_answer_t base_conf = {.base_radius_mm_q8 = 170u * 256u};
 
 static int32_t status(void *context, ctrlbus_get_base_status_answer_t *out)
 {
@@ -165,7 +162,7 @@ int main(void)
         .frame_timeout_ms = MINIMAL_BASE_FRAME_TIMEOUT_MS,
         .limits = {.max_wheel_mm_s = MAX_WHEEL_MM_S, .wheel_track_mm = WHEEL_TRACK_MM},
         .write = uart_write,
-        .connect_info = connect_info, .base_config = base_config, .status = status,
+        .connect_info = connect_info, .base_conf = &base_conf, .status = status,
         .motor_data = motor_data, .sensor_data = sensor_data, .bumper_data = bumper_data,
         .charger_data = charger_data, .set_wheel_speeds = set_wheel_speeds,
         .set_velocity = set_velocity,

@@ -18,13 +18,6 @@ static int32_t connect_info(void *context, ctrlbus_connect_base_answer_t *out)
     return CTRLBUS_OK;
 }
 
-static int32_t base_config(void *context, ctrlbus_get_base_conf_answer_t *out)
-{
-    const base_glue_t *glue = context;
-    simbase_answer_base_conf(&glue->sim, out);
-    return CTRLBUS_OK;
-}
-
 static int32_t status(void *context, ctrlbus_get_base_status_answer_t *out)
 {
     const base_glue_t *glue = context;
@@ -145,6 +138,7 @@ int32_t base_glue_init(base_glue_t *glue, const base_glue_options_t *options, ui
         glue->options.time_scale_percent = DEFAULT_TIME_SCALE_PERCENT;
     }
     simbase_init(&glue->sim, &glue->options.sim);
+    simbase_answer_base_conf(&glue->sim, &glue->base_conf); /* the geometry never changes */
     glue->identity.model = "ctrlbus sim";
     glue->identity.firmware_version =
         (uint16_t)((CTRLBUS_VERSION_MAJOR << 8) | CTRLBUS_VERSION_MINOR);
@@ -171,7 +165,7 @@ int32_t base_glue_init(base_glue_t *glue, const base_glue_options_t *options, ui
     config->write_context = options->write_context;
     config->context = glue;
     config->connect_info = connect_info;
-    config->base_config = base_config;
+    config->base_conf = &glue->base_conf;
     config->status = status;
     config->motor_data = motor_data;
     config->sensor_data = sensor_data;

@@ -66,6 +66,7 @@ typedef struct {
     ctrlbus_base_health_entry_t health[BASE_GLUE_HEALTH_ENTRIES];
     simbase_t sim;
     simbase_identity_t identity;
+    ctrlbus_get_base_conf_answer_t base_conf; /* GET_BASE_CONF, streamed from here */
     base_glue_options_t options;
     uint32_t last_poll_ms;      /* the simulation has been stepped up to here */
     uint32_t sim_remainder;     /* scaled time not yet stepped, in 1/100 ms */

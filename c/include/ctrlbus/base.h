@@ -27,16 +27,18 @@
  * field by field, straight from the application's answer struct or, for GET_BASE_CONF_ADV, from
  * the caller's constant blob. There is NO transmit buffer, and no path needs one: SYNC and ECHO
  * answers are written from the decoder's frame buffer, where the request still is. The write
- * callback receives short pieces (a header, one field) and must take all of them: a blocking UART
- * write (wait for room in the transmit register) is the simplest. Note that a blocking write holds
+ * callback receives pieces (a header, a field, a run of integer fields straight from the answer
+ * struct) and must take all of them: a blocking UART write (wait for room in the transmit
+ * register) is the simplest. Note that a blocking write holds
  * the main loop for the answer's time on the wire (23 ms for GET_BASE_CONF at 115200 baud);
  * received bytes keep arriving in the ring meanwhile, which must be large enough for them (a Core
  * sends its next request only after the answer, so a few dozen bytes are plenty; 256 is ample).
  *
- * Handlers: one callback per request (connect_info, base_config, status, ...). Each fills the
- * answer struct of messages.h that the stack passes in (zeroed first) and returns CTRLBUS_OK; any
- * negative value makes the answer ERROR 0x8002 (operation failed), except CTRLBUS_ERR_UNSUPPORTED,
- * which answers 0x8000. A NULL handler means "not supported": the request is answered 0x8000, as
+ * Handlers: one callback per request (connect_info, status, ...; GET_BASE_CONF is answered from
+ * the application's struct config->base_conf instead, so its 264 bytes never sit on the stack).
+ * Each fills the answer struct of messages.h that the stack passes in (zeroed first) and returns
+ * CTRLBUS_OK; any negative value makes the answer ERROR 0x8002 (operation failed), except
+ * CTRLBUS_ERR_UNSUPPORTED, which answers 0x8000. A NULL handler means "not supported": the request is answered 0x8000, as
  * the protocol prescribes (docs/protocol.md §8.2 check 8). The stack has already validated the
  * request (length, argument values) and applied the velocity limits when a handler runs. Handlers
  * run inside ctrlbus_base_poll(), in the main loop; they may call the health and command-queue
@@ -125,9 +127,9 @@
  *     from the main loop every few milliseconds with a millisecond clock, and a write callback
  *     that takes every byte (c/examples/minimal_base/ is a complete base in one file);
  *   - per request, one handler filling the answer struct with what the robot knows. The 13
- *     requests every base must answer (docs/protocol.md §5) need connect_info, base_config,
- *     status, motor_data, sensor_data, bumper_data, charger_data, set_wheel_speeds and
- *     set_velocity; POLL_BASE_CMD, POLL_BASE_ANS_CMD, SEND_EVENT and HEALTH_MGMT need none;
+ *     requests every base must answer (docs/protocol.md §5) need connect_info, base_conf (the
+ *     GET_BASE_CONF answer itself, a struct the application keeps), status, motor_data,
+ *     sensor_data, bumper_data, charger_data, set_wheel_speeds and set_velocity; POLL_BASE_CMD, POLL_BASE_ANS_CMD, SEND_EVENT and HEALTH_MGMT need none;
  *   - the robot itself: driving and stopping the motors, odometry (the wheel totals of
  *     motor_data, the deadreckon deltas of set_velocity: ctrlbus/diffdrive.h helps), the local
  *     bumper safety and stall detection, and the robot's own health conditions (battery, motors,
@@ -263,7 +265,11 @@ typedef struct {
     /* CONNECT_BASE (version 1; the stack answers other versions 0x8000). The profile decides
      * whether the firmware_version_suffix is sent (see ctrlbus_base_profile_t). */
     int32_t (*connect_info)(void *context, ctrlbus_connect_base_answer_t *out);
-    int32_t (*base_config)(void *context, ctrlbus_get_base_conf_answer_t *out);
+    /* GET_BASE_CONF: not a handler but the answer itself, read field by field while it is
+     * written (264 bytes that never sit on the stack). The application owns it and may change it
+     * between polls; NULL: not supported (0x8000). A struct its check refuses (a count over 8) is
+     * answered 0x8002. */
+    const ctrlbus_get_base_conf_answer_t *base_conf;
     int32_t (*status)(void *context, ctrlbus_get_base_status_answer_t *out);
     int32_t (*motor_data)(void *context, ctrlbus_get_base_motor_data_answer_t *out);
     int32_t (*sensor_data)(void *context, ctrlbus_get_base_sensor_data_answer_t *out);

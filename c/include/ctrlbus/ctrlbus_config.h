@@ -17,9 +17,10 @@
  *     ctrlbus_base_init() refuses (CTRLBUS_ERR_UNSUPPORTED) a config that asks for it.
  *
  * The size effects are .text bytes of the base stack on cortex-m0plus, arm-none-eabi-gcc 12 -Os,
- * linked with --gc-sections, each switch turned off alone from the default build (5,884 B). All
- * off together (the minimal configuration) save 1,674 B (4,210 B left). `make size` prints both
- * configurations for every target; docs/performance.md tables them.
+ * linked with --gc-sections, each switch turned off alone from the default build (5,490 B). All
+ * off together (the minimal configuration) save 1,645 B (3,845 B left). Measured with
+ * `make size`, which prints both configurations for every target; docs/performance.md tables
+ * them.
  */
 #ifndef CTRLBUS_CTRLBUS_CONFIG_H
 #define CTRLBUS_CTRLBUS_CONFIG_H
@@ -32,7 +33,7 @@
  * watchdog's health warning). Off: HEALTH_GET_HEALTH (mandatory) answers no errors,
  * HEALTH_GET_ERROR and HEALTH_CLR_ERROR answer 0x8002 (no such error, as with an empty registry),
  * ctrlbus_base_health_add/_clear return CTRLBUS_ERR_UNSUPPORTED, and a config with
- * health_entries is refused. Size effect: 528 B. */
+ * health_entries is refused. Size effect: 501 B. */
 #ifndef CTRLBUS_CONFIG_HEALTH
 #define CTRLBUS_CONFIG_HEALTH 1
 #endif
@@ -41,14 +42,14 @@
  * pending command, the nCMD line callback). Off: POLL_BASE_CMD (mandatory) always answers
  * "nothing pending", POLL_BASE_ANS_CMD answers OK, ctrlbus_base_queue_command returns
  * CTRLBUS_ERR_UNSUPPORTED, and a config with command_queue storage is refused.
- * Size effect: 270 B. */
+ * Size effect: 258 B. */
 #ifndef CTRLBUS_CONFIG_COMMAND_QUEUE
 #define CTRLBUS_CONFIG_COMMAND_QUEUE 1
 #endif
 
 /* The velocity limits (ctrlbus_base_config_t.limits, docs/protocol.md §9.2), including the
  * differential-drive arithmetic they need. Off: commands reach the handlers unchanged, and a
- * config with any limit set is refused. Size effect: 772 B (most of it ctrlbus/diffdrive.h's
+ * config with any limit set is refused. Size effect: 768 B (most of it ctrlbus/diffdrive.h's
  * wheel-speed arithmetic and libgcc's 64-bit multiply). */
 #ifndef CTRLBUS_CONFIG_LIMITS
 #define CTRLBUS_CONFIG_LIMITS 1
@@ -56,14 +57,14 @@
 
 /* The sdk2020 profile (CTRLBUS_PROFILE_SDK2020: CONNECT with its suffix, deadreckon with the
  * timestamp, bumpers padded to 4 bytes, POLL_BASE_CMD's FF 00). Off: only the reference profile;
- * a config asking for sdk2020 is refused. Size effect: 52 B. */
+ * a config asking for sdk2020 is refused. Size effect: 60 B. */
 #ifndef CTRLBUS_CONFIG_PROFILE_SDK2020
 #define CTRLBUS_CONFIG_PROFILE_SDK2020 1
 #endif
 
 /* GET_BASE_CONF_ADV (0x21), streamed from ctrlbus_base_config_t.binary_config. Off: the request
  * is answered 0x8000 (the Core then asks GET_BASE_CONF), and a config with a binary_config is
- * refused. Size effect: 28 B. */
+ * refused. Size effect: 38 B. */
 #ifndef CTRLBUS_CONFIG_CONF_ADV
 #define CTRLBUS_CONFIG_CONF_ADV 1
 #endif
@@ -74,7 +75,7 @@
  * (src/messages_master.c), so a base firmware linked with --gc-sections never pays for them;
  * off, they are neither compiled nor declared (using one is a compile error).
  * Size effect on the base stack: 0 B (they were never linked into it); on the whole library
- * (every object, unlinked): 1,727 B (src/messages_master.c). */
+ * (every object, unlinked): 1,659 B (src/messages_master.c). */
 #ifndef CTRLBUS_CONFIG_MASTER_CODECS
 #define CTRLBUS_CONFIG_MASTER_CODECS 1
 #endif

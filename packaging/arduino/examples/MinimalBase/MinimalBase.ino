@@ -46,13 +46,9 @@ static int32_t connect_info(void *, ctrlbus_connect_base_answer_t *out)
     return CTRLBUS_OK;
 }
 
-static int32_t base_config(void *, ctrlbus_get_base_conf_answer_t *out)
-{
-    out->base_type = 0;                  // round
-    out->base_radius_mm_q8 = 170UL * 256; // 170 mm
-    out->motor_type = 0;                  // two-wheel differential; no sensors, no bumpers
-    return CTRLBUS_OK;
-}
+// GET_BASE_CONF is a constant the stack streams: round, 170 mm radius, two-wheel differential,
+// no sensors, no bumpers.
+static const ctrlbus_get_base_conf_answer_t base_conf = {0, 170UL * 256, 0, 0, {}, 0, {}};
 
 static int32_t status(void *, ctrlbus_get_base_status_answer_t *out)
 {
@@ -112,7 +108,7 @@ void setup()
     config.limits.wheel_track_mm = WHEEL_TRACK_MM;
     config.write = uart_write;
     config.connect_info = connect_info;
-    config.base_config = base_config;
+    config.base_conf = &base_conf;
     config.status = status;
     config.motor_data = motor_data;
     config.sensor_data = sensor_data;
