@@ -17,10 +17,10 @@
  *     ctrlbus_base_init() refuses (CTRLBUS_ERR_UNSUPPORTED) a config that asks for it.
  *
  * The size effects are .text bytes of the base stack on cortex-m0plus, arm-none-eabi-gcc 12 -Os,
- * linked with --gc-sections, each switch turned off alone from the default build (5,490 B). All
- * off together (the minimal configuration) save 1,645 B (3,845 B left). Measured with
- * `make size`, which prints both configurations for every target; docs/performance.md tables
- * them.
+ * linked with --gc-sections, each switch turned off alone from the default build (5,490 B before
+ * the decoder's byte path was added; 7,358 B with it). All off together (the minimal
+ * configuration) save 1,641 B (5,717 B left). Measured with `make size`, which prints both
+ * configurations for every target; docs/performance.md tables them.
  */
 #ifndef CTRLBUS_CTRLBUS_CONFIG_H
 #define CTRLBUS_CTRLBUS_CONFIG_H
