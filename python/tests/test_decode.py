@@ -7,8 +7,10 @@ worked out by hand), never produced by our encoder.
 
 from __future__ import annotations
 
+import functools
 import io
 import json
+import operator
 import os
 import pty
 import random
@@ -291,6 +293,24 @@ def test_pairing_in_a_capture_and_line_fault_errors_keep_the_request(tmp_path: P
     assert "still waiting" in frames[1].notes[0]
     assert frames[3].notes == ("no request outstanding",)
     assert "1 argument bytes, expected 0" in (frames[4].error_message or "")
+
+
+@pytest.mark.parametrize("code", [0x0030, 0x0090, 0x00D0, 0x00F0])
+def test_the_references_combined_line_fault_codes_keep_the_request(tmp_path: Path, code: int) -> None:
+    """Every ERROR code below 0x0100 is a line fault (protocol §11.6), not only the four plain ones."""
+    error = bytes([0x50, 0x03, 0x00, 0x03, code & 0xFF, code >> 8])
+    error += bytes([functools.reduce(operator.xor, error, 0)])
+    path = tmp_path / "combined.pcap"
+    with CaptureWriter.create(path) as capture:
+        capture.write(C, bytes.fromhex("10 02 F8 30 DA"), 1.0)  # GET_BASE_STATUS
+        capture.write(B, error, 1.001)
+        capture.write(B, bytes.fromhex("50 03 00 02 50 03 02"), 1.002)
+    frames = [e for e in decode_bytes(path.read_bytes()).entries if isinstance(e, FrameNote)]
+    assert [(e.name, e.to) for e in frames] == [
+        ("GET_BASE_STATUS", None),
+        ("ERROR", None),
+        ("OK", "GET_BASE_STATUS"),
+    ]
 
 
 def test_sync_answer_that_is_not_a_copy_is_flagged(tmp_path: Path) -> None:

@@ -28,8 +28,9 @@
 --
 -- Pairing answers with requests: the outstanding request is the last request frame (Core to base)
 -- decoded. An answer OK, SYNC, ECHO or INVALID answers it and clears it. An ERROR answers it and
--- clears it too, except the stream-level codes 0x0010, 0x0020, 0x0040 and 0x00C0, which answer
--- bytes rather than a request: they get no `to` and leave the outstanding request alone.
+-- clears it too, except the line-fault codes (every code below 0x0100: 0x0010, 0x0020, 0x0040,
+-- 0x00C0 and the reference's combined ones such as 0x0090), which answer bytes rather than a
+-- request: they get no `to` and leave the outstanding request alone.
 --
 -- Tested with tshark 4.0 (Lua 5.2). It needs neither a bit library nor Lua 5.3 operators, so that
 -- builds on Lua 5.4 can run it too.
@@ -65,7 +66,8 @@ local ERROR_NAMES = {
     [0x8000] = "not supported", [0x8001] = "format error", [0x8002] = "operation error",
 }
 -- ERROR codes that answer bytes on the line rather than a request.
-local STREAM_ERRORS = { [0x0010] = true, [0x0020] = true, [0x0040] = true, [0x00C0] = true }
+-- ERROR codes below this are the receiver's state bits (protocol.md §11.6), not an answer to a request.
+local LINE_FAULT_LIMIT = 0x0100
 local EVENT_NAMES = {
     [0x61] = "LIDAR_CONN_FAIL", [0x62] = "LIDAR_RAMPUP_FAIL", [0x63] = "SYSTEM_UP_OK",
     [0x64] = "FIRMWARE_UPDATE", [0x65] = "CORE_DISCONNECT", [0x66] = "FIRMWARE_UPDATE_OK",
@@ -472,7 +474,7 @@ local function pair_frames(direction, items)
             else
                 local request = state.outstanding
                 local stream_error = cmd == 0x03 and #payload == 2
-                    and STREAM_ERRORS[payload:byte(1) + 256 * payload:byte(2)]
+                    and payload:byte(1) + 256 * payload:byte(2) < LINE_FAULT_LIMIT
                 if request and not stream_error then
                     item.to, item.to_label, item.request_in = request.name, request.label, request.last_packet
                     item.request_data = request.data

@@ -41,6 +41,7 @@ from typing import Any
 from ctrlbus import binconf
 from ctrlbus.capture import Direction
 from ctrlbus.compat import StrEnum
+from ctrlbus.constants import LINE_FAULT_LIMIT
 from ctrlbus.constants import MOTION_BIT_NAMES as _MOTION_BITS
 from ctrlbus.constants import POWER_BIT_NAMES as _POWER_BITS
 from ctrlbus.errors import BinaryConfigError, MessageError, UnsupportedMessageError, UsageError
@@ -89,12 +90,6 @@ __all__ = [
 # The two directions by who sends: what the CLI's --direction and the JSON "direction" key say.
 SENDERS: Mapping[str, Direction] = {"core": Direction.CORE_TO_BASE, "base": Direction.BASE_TO_CORE}
 
-# ERROR codes that answer bytes on the line (garbage, an oversize or damaged frame), not a request.
-# (The pairing rule is the Wireshark dissector's; the reference's combined codes such as 0x0090
-# are paired like any other ERROR.)
-LINE_FAULT_ERRORS = frozenset(
-    {ErrorCode.NOT_SYNCED, ErrorCode.TOO_LONG, ErrorCode.CHECKSUM, ErrorCode.REFERENCE_CHECKSUM}
-)
 MIN_TEXT_RUN = 4  # printable ASCII shown beside a payload's hex from this many characters on
 _ANSWER_CMDS = frozenset({Response.OK, Response.ERROR, Response.INVALID})
 _COPY_CMDS = frozenset({Cmd.SYNC, Cmd.ECHO})  # the same CMD in a request and in its answer
@@ -555,7 +550,7 @@ class Annotator:
         line_fault = (
             frame.cmd == Response.ERROR
             and len(frame.payload) == 2
-            and int.from_bytes(frame.payload, "little") in LINE_FAULT_ERRORS
+            and int.from_bytes(frame.payload, "little") < LINE_FAULT_LIMIT
         )
         to = request_offset = request_time = None
         if line_fault:

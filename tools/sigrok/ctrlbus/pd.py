@@ -49,8 +49,9 @@ ERROR_MEANINGS = {
     0x0040: 'checksum mismatch', 0x00C0: 'checksum mismatch, reference form',
     0x8000: 'not supported', 0x8001: 'format error', 0x8002: 'operation failed',
 }
-# ERROR codes that answer bytes on the line, not a request: they pair with nothing.
-LINE_FAULT_ERRORS = (0x0010, 0x0020, 0x0040, 0x00C0)
+# ERROR codes below this answer bytes on the line (the receiver's state bits, the reference's
+# combined codes such as 0x0090 included), not a request: they pair with nothing.
+LINE_FAULT_LIMIT = 0x0100
 POWER_BITS = ((0x01, 'charging'), (0x02, 'DC connected'), (0x04, 'on the dock'))
 MOTION_BITS = ((0x02, 'wheel stall'), (0x04, 'traction lost'))
 HEALTH_BITS = ((0x01, 'warning'), (0x02, 'error'), (0x04, 'fatal'))
@@ -657,7 +658,7 @@ class Decoder(srd.Decoder):
             name = RESPONSES.get(cmd)
             label = name or '0x%02X' % cmd
             line_fault = cmd == 0x03 and len(payload) == 2 and \
-                (payload[0] | payload[1] << 8) in LINE_FAULT_ERRORS
+                (payload[0] | payload[1] << 8) < LINE_FAULT_LIMIT
             to = None
             if self.waiting and not line_fault:
                 to = self.outstanding
