@@ -264,16 +264,7 @@ int32_t ctrlbus_frame_encode(uint8_t *out, size_t out_size, uint8_t cmd, const u
 
 /* ---- decoder -------------------------------------------------------------------------------- */
 
-/* The bulk path (see CTRLBUS_DECODER_FAST in frame.h): 0 = off; 1 = on, with the shortcuts for
- * the most common feeds (the default); 2 = on without the shortcuts, take_bulk() in the general
- * loop alone (the default in builds optimised for size, which are MCU firmware builds). */
-#ifndef CTRLBUS_DECODER_FAST
-#if defined(__OPTIMIZE_SIZE__)
-#define CTRLBUS_DECODER_FAST 2
-#else
-#define CTRLBUS_DECODER_FAST 1
-#endif
-#endif
+/* The bulk path's level, CTRLBUS_DECODER_FAST, is set in ctrlbus/ctrlbus_config.h. */
 #if CTRLBUS_DECODER_FAST == 1
 #define DECODER_SHORTCUTS 1
 #else

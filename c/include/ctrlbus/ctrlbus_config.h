@@ -80,6 +80,20 @@
 #define CTRLBUS_CONFIG_MASTER_CODECS 1
 #endif
 
+/* The frame decoder's bulk path (ctrlbus_decoder_feed() in ctrlbus/frame.h): 0 = off, the byte
+ * by byte path alone; 1 = on, with shortcuts for the most common feeds (a whole frame, a frame's
+ * start); 2 = on without the shortcuts. The default is 1, or 2 when compiling with -Os (as MCU
+ * firmware is). Every level gives the same results on the wire; the levels trade code for speed
+ * (docs/performance.md). The minimal configuration has it off. Size effect: see ctrlbus/frame.h at
+ * ctrlbus_decoder_feed(). */
+#ifndef CTRLBUS_DECODER_FAST
+#if defined(__OPTIMIZE_SIZE__)
+#define CTRLBUS_DECODER_FAST 2
+#else
+#define CTRLBUS_DECODER_FAST 1
+#endif
+#endif
+
 /* The profile a config whose `profile` is left zero gets (ctrlbus_base_profile_t, base.h). Define
  * it for the whole build, e.g. -DCTRLBUS_DEFAULT_PROFILE=CTRLBUS_PROFILE_SDK2020, to build a
  * firmware for the vendor's 2020 master SDK without touching its code (c/firmware builds its
