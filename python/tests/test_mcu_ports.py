@@ -6,6 +6,10 @@ The images are built here with c/ports/Makefile (make -C c/ports), so `make test
 current sources; QEMU runs the `minimal_base-qemu.elf` image of each board (c/ports/README.md says
 how it differs from the chip's), and on the 32-bit boards also `simbase-qemu.elf`, the simulated
 base. The Cortex-M0+ image is built and sized only: QEMU has no Cortex-M0+ board.
+
+On the Uno the checker run also measures the stack (the port paints the free RAM; QEMU's monitor
+reads it afterwards), and issue 13's footprint goal is asserted: at least half of the 32 KB of
+flash and of the 2 KB of RAM free, the RAM counting the static data and the deepest stack.
 """
 
 from __future__ import annotations
@@ -16,7 +20,9 @@ import socket
 import subprocess
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import TypeVar
 
 import pytest
 from base_harness import REPO, Process
@@ -43,6 +49,14 @@ TOOLS = ("avr-gcc", "arm-none-eabi-gcc", "riscv64-unknown-elf-gcc", "qemu-system
 # A 400 ms request timeout gives 2 s; the latency check still passes far below it (p99 ~15 ms).
 CHECKER_ARGS = {"uno": ("--timeout-ms", "400")}
 ATMEGA328P_FLASH, ATMEGA328P_RAM = 32 * 1024, 2 * 1024
+# Issue 13's goal for the Uno's minimal base: at least half of the flash and of the RAM free.
+FLASH_GOAL, RAM_GOAL = ATMEGA328P_FLASH // 2, ATMEGA328P_RAM // 2
+# The RAM goal is not met yet: the 512-byte frame buffer that the checker's SYNC and ECHO checks
+# need, the 264-byte GET_BASE_CONF answer (avr-gcc keeps const data in RAM) and the library's stack
+# add up to more (c/ports/README.md, "ATmega328P", says what would meet it). While this is True a
+# missed RAM goal is an expected failure (xfail, naming the figures) and a met one fails, so that
+# whoever meets it turns this off and the goal holds from then on.
+UNO_RAM_GOAL_PENDING = True
 AVR_DATA_SPACE = 0x800000  # where QEMU's AVR model maps the data memory (RAM at +0x100)
 AVR_RAM_END = 0x8FF  # ATmega328P's last RAM address
 STACK_PAINT = 0xC5  # what c/ports/uno/port.c paints the free RAM with before main()
@@ -62,14 +76,19 @@ def port_images() -> Path:
     return PORTS_BUILD
 
 
-RUNS = [(board, "minimal_base") for board in sorted(QEMU)] + [
+# The Uno's minimal base runs in the uno_stack fixture (its checker run also measures the stack).
+RUNS = [(board, "minimal_base") for board in sorted(QEMU) if board != "uno"] + [
     (board, "simbase") for board in ("microbit", "netduinoplus2", "sifive_e")
 ]
 
+Measured = TypeVar("Measured")
 
-@pytest.mark.parametrize(("board", "application"), RUNS)
-def test_checker_passes_on(board: str, application: str, port_images: Path, tmp_path: Path) -> None:
-    image = port_images / board / f"{application}-qemu.elf"
+
+def run_checker(
+    board: str, image: Path, tmp_path: Path, measure: Callable[[Path, Process], Measured] | None = None
+) -> Measured | None:
+    """Run `image` under QEMU and require `ctrlbus check` to pass against it; then, while QEMU
+    still runs, `measure(monitor socket, qemu)` if given, and return what it returns."""
     port = free_port()
     monitor = Path(tempfile.mkdtemp(prefix="ctrlbus-mon-")) / "monitor.sock"  # short: max 107 bytes
     command = [
@@ -85,14 +104,32 @@ def test_checker_passes_on(board: str, application: str, port_images: Path, tmp_
         connect_tcp_when_listening(port, qemu)
         url, report = f"socket://127.0.0.1:{port}", tmp_path / "report.json"
         assert_checker_passes(url, report, qemu.describe, CHECKER_ARGS.get(board, ()))
-        if board == "uno":
-            # After a whole checker run: the static RAM and the deepest stack still fit in 2 KB.
-            _text, data, bss = sections("avr-size", image)
-            stack = avr_stack_high_water(monitor, image, qemu)
-            assert data + bss + stack <= ATMEGA328P_RAM, f"static RAM {data + bss} B + stack {stack} B"
+        return None if measure is None else measure(monitor, qemu)
     finally:
         qemu.stop()
         shutil.rmtree(monitor.parent, ignore_errors=True)
+
+
+@pytest.mark.parametrize(("board", "application"), RUNS)
+def test_checker_passes_on(board: str, application: str, port_images: Path, tmp_path: Path) -> None:
+    run_checker(board, port_images / board / f"{application}-qemu.elf", tmp_path)
+
+
+@pytest.fixture(scope="module")
+def uno_stack(port_images: Path, tmp_path_factory: pytest.TempPathFactory) -> int:
+    """The checker passes on the Uno's QEMU image; returns how deep its stack went meanwhile (B)."""
+    image = port_images / "uno" / "minimal_base-qemu.elf"
+
+    def measure(monitor: Path, qemu: Process) -> int:
+        return avr_stack_high_water(monitor, image, qemu)
+
+    stack = run_checker("uno", image, tmp_path_factory.mktemp("uno"), measure)
+    assert stack is not None
+    return stack
+
+
+def test_checker_passes_on_the_uno(uno_stack: int) -> None:
+    assert 0 < uno_stack < ATMEGA328P_RAM, f"stack high-water mark {uno_stack} B"
 
 
 def avr_stack_high_water(monitor: Path, image: Path, qemu: Process) -> int:
@@ -124,11 +161,47 @@ def sections(size_tool: str, image: Path) -> tuple[int, int, int]:
     return text, data, bss
 
 
+def avr_interrupt_frame(image: Path) -> int:
+    """The most stack one interrupt handler of the image takes (B): its pushed registers and the
+    2-byte return address. The handlers call nothing (checked: otherwise this would not be all of
+    it) and do not re-enable interrupts, so they do not nest: this comes on top of the main loop's
+    deepest stack once. An image without handlers gives 0."""
+    objdump = ["avr-objdump", "-d", str(image)]
+    listing = subprocess.run(objdump, capture_output=True, text=True, check=True).stdout
+    deepest = 0
+    for function in re.split(r"\n(?=[0-9a-f]+ <)", listing):
+        name = re.match(r"[0-9a-f]+ <(__vector_\d+)>:", function)
+        if name is None:
+            continue
+        instructions = re.findall(r"^\s+[0-9a-f]+:\t(?:[0-9a-f]{2} )+\s*\t(\w+)", function, re.M)
+        calls = {"call", "rcall", "icall", "eicall"} & set(instructions)
+        assert not calls, f"{name[1]} of {image.name} calls {sorted(calls)}: it needs more than its pushes"
+        deepest = max(deepest, instructions.count("push") + 2)
+    return deepest
+
+
 @pytest.mark.parametrize("image", ["minimal_base.elf", "minimal_base-qemu.elf"])
-def test_atmega328p_image_fits_the_chip(image: str, port_images: Path) -> None:
-    text, data, bss = sections("avr-size", port_images / "uno" / image)
-    assert text + data <= ATMEGA328P_FLASH, f"flash {text + data} B"
-    assert data + bss <= ATMEGA328P_RAM, f"static RAM {data + bss} B"
+def test_atmega328p_footprint_goal(image: str, port_images: Path, uno_stack: int) -> None:
+    """Flash: .text + .data. RAM: .data + .bss + the stack, which for both images is the QEMU
+    image's measured high-water mark (the same library and application; the chip's port differs
+    in sleeping and in reading Timer1 with interrupts off) plus, on the chip, one interrupt."""
+    path = port_images / "uno" / image
+    text, data, bss = sections("avr-size", path)
+    interrupt = avr_interrupt_frame(path)
+    flash, ram = text + data, data + bss + uno_stack + interrupt
+    figures = (
+        f"{image}: flash {flash} B of {ATMEGA328P_FLASH} ({ATMEGA328P_FLASH - flash} free); RAM {ram} B of "
+        f"{ATMEGA328P_RAM} ({ATMEGA328P_RAM - ram} free) = .data {data} + .bss {bss} + stack {uno_stack} "
+        f"(measured under QEMU after a checker run) + interrupt {interrupt}"
+    )
+    assert flash <= FLASH_GOAL, f"less than half of the flash free: {figures}"
+    assert ram <= ATMEGA328P_RAM, f"does not fit the RAM: {figures}"
+    if ram <= RAM_GOAL:
+        assert not UNO_RAM_GOAL_PENDING, f"the RAM goal is met: set UNO_RAM_GOAL_PENDING to False ({figures})"
+    elif UNO_RAM_GOAL_PENDING:
+        pytest.xfail(f"less than half of the RAM free (the goal is pending): {figures}")
+    else:
+        pytest.fail(f"less than half of the RAM free: {figures}")
 
 
 def test_cortex_m0plus_image_is_built(port_images: Path) -> None:

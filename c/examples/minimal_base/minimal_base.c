@@ -13,12 +13,21 @@
 #include "port.h"
 
 /* The receive ring holds what arrives between two polls (the Uno's port passes 64 bytes); the
- * frame buffer is the largest request accepted, the reference base's 512 bytes. */
+ * frame buffer is the largest request accepted (its max_frame, docs/protocol.md §3.5), the
+ * reference base's 512 bytes: the Core's flushing SYNC (§11.1) is 512 bytes, and `ctrlbus check`
+ * sends SYNC and ECHO frames of up to 512 bytes (c/ports/README.md: what a smaller one costs). */
 #ifndef MINIMAL_BASE_RX_RING_SIZE
 #define MINIMAL_BASE_RX_RING_SIZE 256u
 #endif
 #ifndef MINIMAL_BASE_FRAME_BUFFER_SIZE
 #define MINIMAL_BASE_FRAME_BUFFER_SIZE CTRLBUS_BASE_FRAME_BUFFER_RECOMMENDED
+#endif
+/* 1: the GET_BASE_CONF answer is a variable filled in by main() rather than a constant. Where
+ * const data stays in flash (ARM, RISC-V) the constant costs no RAM; avr-gcc keeps const data in
+ * RAM and also stores its initial value in flash, so there the variable (in .bss, zeroed at
+ * start-up) saves those 264 bytes of flash for the same RAM. The Uno's build sets it. */
+#ifndef MINIMAL_BASE_CONF_AT_INIT
+#define MINIMAL_BASE_CONF_AT_INIT 0
 #endif
 /* 0: the stack's 10 ms. Emulators and hosts deliver bytes in bursts and pass 100. */
 #ifndef MINIMAL_BASE_FRAME_TIMEOUT_MS
@@ -76,8 +85,13 @@ static int32_t connect_info(void *context, ctrlbus_connect_base_answer_t *out)
 }
 
 /* GET_BASE_CONF: round (type 0), radius 170 mm, two-wheel differential (motor type 0), no sensor,
- * no bumper. A constant: the stack streams it from flash. */
-static const ctrlbus_get_base_conf_answer_t base_conf = {.base_radius_mm_q8 = 170u * 256u};
+ * no bumper. The stack streams it from here, field by field. */
+#define BASE_RADIUS_MM_Q8 (170u * 256u)
+#if MINIMAL_BASE_CONF_AT_INIT
+static ctrlbus_get_base_conf_answer_t base_conf; /* filled in by main() */
+#else
+static const ctrlbus_get_base_conf_answer_t base_conf = {.base_radius_mm_q8 = BASE_RADIUS_MM_Q8};
+#endif
 
 static int32_t status(void *context, ctrlbus_get_base_status_answer_t *out)
 {
@@ -167,6 +181,9 @@ int main(void)
         .charger_data = charger_data, .set_wheel_speeds = set_wheel_speeds,
         .set_velocity = set_velocity,
     };
+#if MINIMAL_BASE_CONF_AT_INIT
+    base_conf.base_radius_mm_q8 = BASE_RADIUS_MM_Q8;
+#endif
     ctrlbus_diffdrive_pose_reset(&robot.motion, 0.0f, 0.0f);
     /* The stack first, then the UART interrupt that feeds it. */
     if (ctrlbus_base_init(&base, &config, 0) != CTRLBUS_OK) {
