@@ -38,6 +38,8 @@ from broken_bases import (
     ReadsAnyLength,
     RewritingStack,
     complete_blob,
+    error_code,
+    frames_of,
     simulated_base,
 )
 
@@ -59,6 +61,7 @@ from ctrlbus.cli import main
 from ctrlbus.errors import ProtocolTimeout, UsageError
 from ctrlbus.frame import DecoderEvent, EventKind, Frame, StreamDecoder
 from ctrlbus.link import TcpServerLink, link_pair
+from ctrlbus.messages import ErrorCode
 from ctrlbus.quirks import Quirks
 from ctrlbus.sim.base import SimulatedBase
 from ctrlbus.sim.world import World
@@ -139,6 +142,38 @@ def test_each_base_profile_passes_the_profile_check_for_itself(profile: Profile)
         CheckOptions(profile=profile.value, only=frozenset({NUMBER_OF["profile"], NUMBER_OF["connect"]})),
     )
     assert statuses(report) == {"connect": Status.PASS, "profile": Status.PASS}, explain(report)
+
+
+COPY_CHECKS = frozenset({NUMBER_OF["sync"], NUMBER_OF["echo"]})
+
+
+@pytest.mark.parametrize("max_frame", [12, 64, 305])
+def test_a_small_receive_buffer_is_a_warning_and_its_answers_inside_a_refused_frame_are_expected(
+    max_frame: int,
+) -> None:
+    """A base whose buffer is smaller than a SYNC or ECHO probe refuses it (0x0020), then decodes
+    the probe's other bytes (§7 D4) and answers the frame starts among them: not extra answers."""
+    report = run_checks_against(
+        BaseStack(simulated_base(), BaseConfig(max_frame=max_frame)), fast(only=COPY_CHECKS)
+    )
+    assert statuses(report) == {"sync": Status.WARN, "echo": Status.WARN}, explain(report)
+
+
+class RepeatsOversizeErrors(RewritingStack):
+    """Every ERROR 0x0020 goes out twice."""
+
+    def change_output(self, answer: bytes, requests: list[Frame], now: float) -> bytes:
+        return b"".join(
+            frame.raw * (2 if error_code(frame) == ErrorCode.TOO_LONG else 1) for frame in frames_of(answer)
+        )
+
+
+def test_answers_after_a_refused_frame_that_section_7_does_not_give_fail() -> None:
+    report = run_checks_against(
+        RepeatsOversizeErrors(simulated_base(), BaseConfig(max_frame=64)), fast(only=COPY_CHECKS)
+    )
+    assert statuses(report) == {"sync": Status.FAIL, "echo": Status.FAIL}, explain(report)
+    assert "nor what a §7 decoder finds there" in explain(report)
 
 
 def test_the_reference_checksum_code_is_a_warning_not_a_failure() -> None:

@@ -12,10 +12,11 @@
 #include "ctrlbus/diffdrive.h"
 #include "port.h"
 
-/* The receive ring holds what arrives between two polls (the Uno's port passes 64 bytes); the
- * frame buffer is the largest request accepted (its max_frame, docs/protocol.md §3.5), the
- * reference base's 512 bytes: the Core's flushing SYNC (§11.1) is 512 bytes, and `ctrlbus check`
- * sends SYNC and ECHO frames of up to 512 bytes (c/ports/README.md: what a smaller one costs). */
+/* The receive ring holds what arrives between two polls; the frame buffer is the largest request
+ * accepted (its max_frame, docs/protocol.md §3.5), by default the reference base's 512 bytes,
+ * which also hold the Core's flushing SYNC (§11.1). A larger frame is answered ERROR 0x0020: the
+ * Uno's build passes 64 bytes for both, which hold every other request a Core sends (at most 22
+ * bytes); c/ports/README.md says what the smaller buffer changes. */
 #ifndef MINIMAL_BASE_RX_RING_SIZE
 #define MINIMAL_BASE_RX_RING_SIZE 256u
 #endif

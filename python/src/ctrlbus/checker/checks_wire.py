@@ -8,12 +8,13 @@ them are ones a correct master never sends.
 from __future__ import annotations
 
 from collections.abc import Callable
-from functools import partial
+from functools import cache, partial
 
+from ctrlbus.base import Base, BaseConfig, BaseStack
 from ctrlbus.checker.framework import SECOND_ANSWER_WAIT_S, Check, CheckContext, Rule, error_code_of
 from ctrlbus.checker.probe import FLUSHING_SYNC, describe_frame
 from ctrlbus.constants import LINE_FAULT_BIT_NAMES, LINE_FAULT_LIMIT
-from ctrlbus.frame import Frame, encode
+from ctrlbus.frame import MIN_MAX_FRAME, Frame, StreamDecoder, encode
 from ctrlbus.messages import Cmd, ErrorCode, Request, Response
 
 __all__ = [
@@ -135,6 +136,62 @@ def _difference(sent: bytes, frame: Frame) -> str:
     return f"byte {first} is 0x{raw[first]:02X} instead of 0x{sent[first]:02X}"
 
 
+# Sent after a SYNC or ECHO that the base refused as oversize: its copy ends the answers to the
+# rest of the refused frame.
+END_OF_REFUSED = encode(Cmd.ECHO, b"end")  # 7 bytes: fits every buffer that passes the 12-byte copy
+
+Answers = tuple[tuple[int, bytes], ...]  # (CMD, payload) of each answer, in order
+
+
+@cache
+def section_7_answers_to_refused(data: bytes) -> frozenset[Answers]:
+    """What a base answers to `data` when its max_frame is smaller than the frame, for each
+    max_frame from the least to one byte less than the frame, with either checksum-error code: the
+    refusal (0x0020), then the answers to what its decoder finds in the rest of the frame (§7 D4:
+    an oversize candidate's span is its length bytes only, so a flag byte further in starts a
+    candidate of its own). Modelled with ctrlbus.base, whose requests all answer 0x8000."""
+    outcomes = set()
+    for max_frame in range(MIN_MAX_FRAME, len(data)):
+        for reference_code in (False, True):
+            config = BaseConfig(max_frame=max_frame, reference_checksum_code=reference_code)
+            answer_bytes = BaseStack(Base(), config).receive(data, 0.0)
+            outcomes.add(
+                tuple((frame.cmd, frame.payload) for frame in StreamDecoder(timeout=0).feed(answer_bytes))
+            )
+    return frozenset(outcomes)
+
+
+def _rest_of_refused(ctx: CheckContext, data: bytes, refusal: Frame, what: str) -> None:
+    """After `data` was refused as oversize: the answers to the rest of it, up to the copy of
+    END_OF_REFUSED, must be those of a §7 base, or none (a base that skips the refused frame)."""
+    prober = ctx.prober
+    prober.send(END_OF_REFUSED, "ECHO (its copy ends the answers to the rest of the refused frame)")
+    answers: list[tuple[int, bytes]] = [(refusal.cmd, refusal.payload)]
+    deadline = prober.now() + prober.answer_limit_s
+    while (got := prober.next_item(deadline)) is not None:
+        if not isinstance(got.item, Frame):
+            continue
+        if got.item.raw == END_OF_REFUSED:
+            break
+        answers.append((got.item.cmd, got.item.payload))
+    else:
+        ctx.fail(f"after {what}: no copy of the ECHO sent after it ({len(answers) - 1} answer(s) before)")
+        return
+    if len(answers) == 1:
+        return
+    if tuple(answers) in section_7_answers_to_refused(data):
+        ctx.note(
+            f"{what}: {len(answers) - 1} more answer(s) to frame starts inside the refused frame, "
+            "as a §7 decoder finds them (§7 D4)"
+        )
+        return
+    shown = ", ".join(f"CMD 0x{cmd:02X} {payload.hex(' ')}" for cmd, payload in answers[1:])
+    ctx.fail(
+        f"{what}: after refusing it, answered {shown} to the rest of the frame, which is neither "
+        "nothing nor what a §7 decoder finds there (§7 D4, §8.4)"
+    )
+
+
 def _verbatim(ctx: CheckContext, data: bytes, what: str) -> None:
     frame = ctx.exchange(data, what).frame
     assert frame is not None
@@ -145,6 +202,7 @@ def _verbatim(ctx: CheckContext, data: bytes, what: str) -> None:
             f"{what}: refused as oversize (0x0020); the base's receive buffer is smaller than this "
             f"{len(data)}-byte frame (the reference's holds 512 bytes, and the Core's flushing SYNC is 512)"
         )
+        _rest_of_refused(ctx, data, frame, what)
         return
     ctx.fail(f"{what}: not answered by its verbatim copy ({_difference(data, frame)}, §4.2)")
 
