@@ -335,11 +335,6 @@ static void clear_flag(ctrlbus_decoder_t *d, uint8_t flag)
     d->state = (uint8_t)(d->state & (uint8_t)~flag);
 }
 
-static void count(uint32_t *counter)
-{
-    *counter += 1u;
-}
-
 /* The header size of a candidate: flag and length bytes. */
 static uint32_t header_size(uint8_t flag)
 {
@@ -411,6 +406,32 @@ const char *ctrlbus_rx_name(ctrlbus_rx_t rx)
     case CTRLBUS_RX_BUSY: return "busy";
     default: return "unknown";
     }
+}
+
+/* Rule 5 would fail the partial candidate (if there is one) at now_ms. */
+static bool timed_out(const ctrlbus_decoder_t *d, uint32_t now_ms)
+{
+    uint32_t elapsed = now_ms - d->last_byte_ms;
+    return d->timeout_ms != 0 && elapsed > d->timeout_ms && elapsed < TIME_BACKWARDS;
+}
+
+/* Moves the partial candidate to the front of the buffer, to make room behind it. */
+static void move_to_front(ctrlbus_decoder_t *d)
+{
+    uint32_t keep = d->end - d->start;
+    for (uint32_t i = 0; i < keep; i++) { /* a plain loop: no libc needed on an MCU */
+        d->buffer[i] = d->buffer[d->start + i];
+    }
+    d->start = 0;
+    d->end = keep;
+}
+
+#if CTRLBUS_DECODER_FAST
+/* ---- the byte path, with the state the bulk path keeps ------------------------------------- */
+
+static void count(uint32_t *counter)
+{
+    *counter += 1u;
 }
 
 /* Records an event (rule 1's "an event was raised since the last frame") and returns it. */
@@ -566,13 +587,6 @@ static ctrlbus_rx_t resume(ctrlbus_decoder_t *d)
     return scan(d, d->end - 1u);
 }
 
-/* Rule 5 would fail the partial candidate (if there is one) at now_ms. */
-static bool timed_out(const ctrlbus_decoder_t *d, uint32_t now_ms)
-{
-    uint32_t elapsed = now_ms - d->last_byte_ms;
-    return d->timeout_ms != 0 && elapsed > d->timeout_ms && elapsed < TIME_BACKWARDS;
-}
-
 /* Rule 5, checked before new bytes are taken. Returns a result to hold, or NONE. */
 static ctrlbus_rx_t apply_timeout(ctrlbus_decoder_t *d, uint32_t now_ms)
 {
@@ -585,17 +599,6 @@ static ctrlbus_rx_t apply_timeout(ctrlbus_decoder_t *d, uint32_t now_ms)
         return raise_event(d, CTRLBUS_RX_TIMEOUT); /* the stale bytes are rescanned after it */
     }
     return scan(d, d->start);
-}
-
-/* Moves the partial candidate to the front of the buffer, to make room behind it. */
-static void move_to_front(ctrlbus_decoder_t *d)
-{
-    uint32_t keep = d->end - d->start;
-    for (uint32_t i = 0; i < keep; i++) { /* a plain loop: no libc needed on an MCU */
-        d->buffer[i] = d->buffer[d->start + i];
-    }
-    d->start = 0;
-    d->end = keep;
 }
 
 #if CTRLBUS_DECODER_FAST
@@ -939,6 +942,221 @@ ctrlbus_rx_t ctrlbus_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *f
 #endif
 }
 
+#else /* CTRLBUS_DECODER_FAST == 0 */
+/* ---- the byte path alone: the smallest decoder ------------------------------------------------
+ *
+ * The same rules and the same state bits, in less code: d->checksum and d->complete_at stay 0 (a
+ * candidate's checksum is the XOR of its bytes, taken once when it is complete), and every scan
+ * starts at `start`. Between calls only an incomplete candidate (or nothing) lies there, so a scan
+ * that finds nothing new costs O(1), and feed() and next() can simply scan. A result found is held
+ * in the state until next() hands it out; after that STATE_RESCAN says that more may wait in the
+ * buffered bytes. */
+
+/* Adds n to the counter of d->stats that belongs to rx: frames (CTRLBUS_RX_FRAME), bytes_discarded
+ * (CTRLBUS_RX_GARBAGE), then checksum_errors, oversize, timeouts and empty_frames (the events, in
+ * the order of ctrlbus_rx_t), and resyncs (COUNT_RESYNCS, after them). */
+#define COUNT_RESYNCS 7u
+typedef char stats_follow_rx_order[(offsetof(ctrlbus_decoder_stats_t, checksum_errors) ==
+                                        (CTRLBUS_RX_CHECKSUM_ERROR - 1u) * sizeof(uint32_t) &&
+                                    offsetof(ctrlbus_decoder_stats_t, empty_frames) ==
+                                        (CTRLBUS_RX_EMPTY_FRAME - 1u) * sizeof(uint32_t) &&
+                                    offsetof(ctrlbus_decoder_stats_t, resyncs) ==
+                                        (COUNT_RESYNCS - 1u) * sizeof(uint32_t))
+                                       ? 1
+                                       : -1];
+
+static void add_count(ctrlbus_decoder_t *d, unsigned rx, uint32_t n)
+{
+    if (d->stats != NULL) {
+        *(uint32_t *)(void *)((char *)d->stats + (rx - 1u) * sizeof(uint32_t)) += n;
+    }
+}
+
+/* Rules 1, 2 and 4: drops `drop` bytes at `start` that are not part of a yielded frame, as rx:
+ * CTRLBUS_RX_GARBAGE (a byte while hunting), CTRLBUS_RX_EMPTY_FRAME, or a failure (its flag byte).
+ * Returns rx when it raises its event, else CTRLBUS_RX_NONE. */
+RARE static ctrlbus_rx_t discard(ctrlbus_decoder_t *d, unsigned rx, uint32_t drop)
+{
+    unsigned quiet = d->state & STATE_IN_SPAN; /* rule 4: an echo of a fault already reported */
+    if (rx == CTRLBUS_RX_GARBAGE) {
+        quiet |= d->state & STATE_EVENT_SINCE_FRAME; /* rule 1: one event per gap */
+    } else {
+        add_count(d, rx, 1u);
+        if (rx != CTRLBUS_RX_EMPTY_FRAME) {
+            /* a failure: everything buffered after its flag is its span */
+            add_count(d, COUNT_RESYNCS, 1u);
+            set_flag(d, STATE_IN_SPAN);
+        }
+    }
+    d->start += drop;
+    add_count(d, CTRLBUS_RX_GARBAGE, drop);
+    if (quiet) {
+        return CTRLBUS_RX_NONE;
+    }
+    set_flag(d, STATE_EVENT_SINCE_FRAME);
+    return (ctrlbus_rx_t)rx;
+}
+
+/* Rules 1-5 over the buffered bytes, from `start`: finds the first result (a frame stays at
+ * `start` for next() to hand out) and records it as waiting for next(), or none when more bytes
+ * are needed; a rescan is no longer due. Returns whether there is one. */
+static bool scan(ctrlbus_decoder_t *d)
+{
+    ctrlbus_rx_t found;
+    for (;;) {
+        uint32_t avail = d->end - d->start;
+        const uint8_t *cand = d->buffer + d->start;
+        unsigned rx = CTRLBUS_RX_GARBAGE;
+        uint32_t drop = 1u;
+        if (avail == 0u) {
+            /* Run empty: restart at the front and leave any span (nothing buffered is in it any
+             * more). A byte held behind the stale bytes of a timeout goes in now. */
+            unsigned held = d->state & STATE_HELD;
+            if (held) {
+                d->buffer[0] = d->buffer[d->end];
+            }
+            d->start = 0;
+            d->end = held ? 1u : 0u;
+            clear_flag(d, STATE_FLUSHING | STATE_IN_SPAN | STATE_HELD);
+            if (held) {
+                continue;
+            }
+            found = CTRLBUS_RX_NONE;
+            break;
+        }
+        if ((cand[0] | 0x40u) == CTRLBUS_FLAG_LONG) {
+            /* Rules 2-3: a candidate; its size is known once its header is buffered. */
+            uint32_t header = header_size(cand[0]);
+            uint32_t len_field = 0u;
+            uint32_t size = 0u;
+            if (avail >= header) {
+                len_field = length_field(cand, header);
+                size = header + len_field + 1u;
+            }
+            if (size > d->max_frame) {
+                rx = CTRLBUS_RX_OVERSIZE;
+            } else if (size != 0u && avail >= size) {
+                if (xor_bytes(0u, cand, (size_t)size) != 0u) {
+                    rx = CTRLBUS_RX_CHECKSUM_ERROR;
+                } else if (len_field != 0u) {
+                    add_count(d, CTRLBUS_RX_FRAME, 1u);
+                    clear_flag(d, STATE_EVENT_SINCE_FRAME);
+                    found = CTRLBUS_RX_FRAME;
+                    break;
+                } else {
+                    rx = CTRLBUS_RX_EMPTY_FRAME; /* well-formed, no command: all discarded */
+                    drop = size;
+                }
+            } else if (d->state & STATE_FLUSHING) {
+                rx = CTRLBUS_RX_TIMEOUT; /* rule 5: a stale partial frame */
+            } else {
+                found = CTRLBUS_RX_NONE; /* incomplete: wait for more bytes */
+                break;
+            }
+        }
+        found = discard(d, rx, drop);
+        if (found != CTRLBUS_RX_NONE) {
+            break;
+        }
+    }
+    d->state = (uint8_t)((d->state & (uint8_t)~(STATE_PENDING_MASK | STATE_RESCAN)) | (uint8_t)found);
+    return found != CTRLBUS_RX_NONE;
+}
+
+size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, size_t len,
+                            uint32_t now_ms)
+{
+    ctrlbus_decoder_t *d = decoder;
+    if (d == NULL || d->buffer == NULL) {
+        return len; /* nowhere to put them: report them taken so a caller's loop ends */
+    }
+    if (d->state & STATE_PENDING_MASK) {
+        return 0; /* results first */
+    }
+    if (d->end != d->start && timed_out(d, now_ms)) {
+        /* Rule 5: the candidate at `start` fails, and the bytes after it are rescanned as stale
+         * (after the results a rescan may still have to find in front of it). */
+        set_flag(d, STATE_FLUSHING);
+    }
+    if (scan(d)) {
+        return 0;
+    }
+    if (data == NULL || len == 0u) {
+        return len; /* no bytes: report them all taken so a caller's loop ends */
+    }
+    d->last_byte_ms = now_ms;
+    for (size_t used = 0; used < len;) {
+        if (d->end == d->max_frame) {
+            /* Full: a waiting candidate is shorter than max_frame, so start > 0 here. */
+            move_to_front(d);
+        }
+        d->buffer[d->end++] = data[used++];
+        if (scan(d)) {
+            return used;
+        }
+    }
+    return len;
+}
+
+void ctrlbus_decoder_tick(ctrlbus_decoder_t *decoder, uint32_t now_ms)
+{
+    (void)ctrlbus_decoder_feed(decoder, NULL, 0u, now_ms);
+}
+
+ctrlbus_rx_t ctrlbus_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *frame)
+{
+    ctrlbus_decoder_t *d = decoder;
+    if (d == NULL || d->buffer == NULL) {
+        return CTRLBUS_RX_NONE;
+    }
+    if ((d->state & STATE_PENDING_MASK) == 0u) {
+        (void)scan(d);
+    }
+    ctrlbus_rx_t rx = (ctrlbus_rx_t)(d->state & STATE_PENDING_MASK);
+    clear_flag(d, STATE_PENDING_MASK);
+    if (rx == CTRLBUS_RX_FRAME) {
+        /* The frame lies at `start`; scanning resumes after it at the next call. */
+        const uint8_t *bytes = d->buffer + d->start;
+        uint32_t header = header_size(bytes[0]);
+        uint32_t len_field = length_field(bytes, header);
+        if (frame != NULL) {
+            frame->is_long = header == 3u;
+            frame->cmd = bytes[header];
+            frame->payload = bytes + header + 1u;
+            frame->payload_len = (size_t)(len_field - 1u);
+        }
+        d->start += header + len_field + 1u;
+    }
+    if (rx != CTRLBUS_RX_NONE && (d->start != d->end || (d->state & STATE_HELD))) {
+        set_flag(d, STATE_RESCAN); /* more results may wait in the bytes still buffered */
+    }
+    return rx;
+}
+
+ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte, uint32_t now_ms,
+                                       ctrlbus_frame_t *frame)
+{
+    ctrlbus_decoder_t *d = decoder;
+    if (d == NULL || d->buffer == NULL) {
+        return CTRLBUS_RX_NONE;
+    }
+    if (d->state & STATE_WAITING) {
+        return CTRLBUS_RX_BUSY;
+    }
+    if (ctrlbus_decoder_feed(d, &byte, 1u, now_ms) == 0u) {
+        /* A timeout applied before the byte, and its results come first: the byte waits behind
+         * the stale bytes (see STATE_HELD) and goes in when they are used up. */
+        if (d->end == d->max_frame) {
+            move_to_front(d); /* the timeout failed the candidate at `start`: start > 0 */
+        }
+        d->buffer[d->end] = byte;
+        set_flag(d, STATE_HELD);
+        d->last_byte_ms = now_ms;
+    }
+    return ctrlbus_decoder_next(d, frame);
+}
+#endif
+
 /* ---- take: results straight from the caller's bytes ----------------------------------------- */
 
 /* ctrlbus_decoder_take() in general: results first, then feeds, as its contract spells out. */
@@ -1116,6 +1334,7 @@ ctrlbus_rx_t ctrlbus_decoder_take_slow(ctrlbus_decoder_t *decoder, const uint8_t
     return take_general(d, data, len, now_ms, frame);
 }
 
+#if CTRLBUS_DECODER_FAST
 /* ---- push: one byte per call ---------------------------------------------------------------- */
 
 /* Lets push()'s inline path take the next bytes when the decoder waits for more of a candidate
@@ -1284,3 +1503,4 @@ ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte,
     d->complete_at = arm;
     return CTRLBUS_RX_NONE;
 }
+#endif /* CTRLBUS_DECODER_FAST */

@@ -435,6 +435,7 @@ ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte,
 static inline ctrlbus_rx_t ctrlbus_decoder_push(ctrlbus_decoder_t *decoder, uint8_t byte,
                                                 uint32_t now_ms, ctrlbus_frame_t *frame)
 {
+#if CTRLBUS_DECODER_FAST
     if (decoder == NULL) {
         return CTRLBUS_RX_NONE;
     }
@@ -516,6 +517,7 @@ static inline ctrlbus_rx_t ctrlbus_decoder_push(ctrlbus_decoder_t *decoder, uint
         }
     }
 #endif
+#endif /* CTRLBUS_DECODER_FAST: without the bulk path, every byte goes to push_slow() */
     return ctrlbus_decoder_push_slow(decoder, byte, now_ms, frame);
 }
 
