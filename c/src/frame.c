@@ -945,11 +945,14 @@ ctrlbus_rx_t ctrlbus_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *f
 #else /* CTRLBUS_DECODER_FAST == 0 */
 /* ---- the byte path alone: the smallest decoder ------------------------------------------------
  *
- * The same rules and the same state bits, in less code: d->checksum and d->complete_at stay 0 (a
- * candidate's checksum is the XOR of its bytes, taken once when it is complete), and every scan
- * starts at `start`. Between calls only an incomplete candidate (or nothing) lies there, so a scan
- * that finds nothing new costs O(1), and feed() and next() can simply scan. A result found is held
- * in the state until next() hands it out; after that STATE_RESCAN says that more may wait in the
+ * The same rules and the same state bits, in less code. The scan position is always the front of
+ * the buffer: bytes dropped there (discarded, or a frame handed out) only advance `start`, and the
+ * next scan moves what follows them to the front first. A candidate's checksum is the XOR of its
+ * bytes, taken once when it is complete; d->complete_at stays 0, and d->checksum holds the byte
+ * that STATE_HELD keeps. Between calls only an incomplete candidate (or nothing) is buffered, so a
+ * scan that finds nothing new costs O(1), and feed() and next() can simply scan; a waiting
+ * candidate is shorter than max_frame, so the byte after it always fits. A result found is held in
+ * the state until next() hands it out; after that STATE_RESCAN says that more may wait in the
  * buffered bytes. */
 
 /* Adds n to the counter of d->stats that belongs to rx: frames (CTRLBUS_RX_FRAME), bytes_discarded
@@ -988,7 +991,7 @@ RARE static ctrlbus_rx_t discard(ctrlbus_decoder_t *d, unsigned rx, uint32_t dro
             set_flag(d, STATE_IN_SPAN);
         }
     }
-    d->start += drop;
+    d->start = drop; /* (the scan is at the front) */
     add_count(d, CTRLBUS_RX_GARBAGE, drop);
     if (quiet) {
         return CTRLBUS_RX_NONE;
@@ -1004,18 +1007,18 @@ static bool scan(ctrlbus_decoder_t *d)
 {
     ctrlbus_rx_t found;
     for (;;) {
-        uint32_t avail = d->end - d->start;
-        const uint8_t *cand = d->buffer + d->start;
+        if (d->start != 0u) {
+            move_to_front(d); /* the bytes dropped go */
+        }
+        uint32_t avail = d->end;
+        const uint8_t *cand = d->buffer;
         unsigned rx = CTRLBUS_RX_GARBAGE;
         uint32_t drop = 1u;
         if (avail == 0u) {
-            /* Run empty: restart at the front and leave any span (nothing buffered is in it any
-             * more). A byte held behind the stale bytes of a timeout goes in now. */
+            /* Run empty: leave any span (nothing buffered is in it any more). A byte held behind
+             * the stale bytes of a timeout goes in now. */
             unsigned held = d->state & STATE_HELD;
-            if (held) {
-                d->buffer[0] = d->buffer[d->end];
-            }
-            d->start = 0;
+            d->buffer[0] = d->checksum;
             d->end = held ? 1u : 0u;
             clear_flag(d, STATE_FLUSHING | STATE_IN_SPAN | STATE_HELD);
             if (held) {
@@ -1086,11 +1089,7 @@ size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, siz
     }
     d->last_byte_ms = now_ms;
     for (size_t used = 0; used < len;) {
-        if (d->end == d->max_frame) {
-            /* Full: a waiting candidate is shorter than max_frame, so start > 0 here. */
-            move_to_front(d);
-        }
-        d->buffer[d->end++] = data[used++];
+        d->buffer[d->end++] = data[used++]; /* behind a waiting candidate (at the front) */
         if (scan(d)) {
             return used;
         }
@@ -1115,8 +1114,8 @@ ctrlbus_rx_t ctrlbus_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *f
     ctrlbus_rx_t rx = (ctrlbus_rx_t)(d->state & STATE_PENDING_MASK);
     clear_flag(d, STATE_PENDING_MASK);
     if (rx == CTRLBUS_RX_FRAME) {
-        /* The frame lies at `start`; scanning resumes after it at the next call. */
-        const uint8_t *bytes = d->buffer + d->start;
+        /* The frame lies at the front; scanning resumes after it at the next call. */
+        const uint8_t *bytes = d->buffer;
         uint32_t header = header_size(bytes[0]);
         uint32_t len_field = length_field(bytes, header);
         if (frame != NULL) {
@@ -1125,7 +1124,7 @@ ctrlbus_rx_t ctrlbus_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *f
             frame->payload = bytes + header + 1u;
             frame->payload_len = (size_t)(len_field - 1u);
         }
-        d->start += header + len_field + 1u;
+        d->start = header + len_field + 1u;
     }
     if (rx != CTRLBUS_RX_NONE && (d->start != d->end || (d->state & STATE_HELD))) {
         set_flag(d, STATE_RESCAN); /* more results may wait in the bytes still buffered */
@@ -1146,10 +1145,7 @@ ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte,
     if (ctrlbus_decoder_feed(d, &byte, 1u, now_ms) == 0u) {
         /* A timeout applied before the byte, and its results come first: the byte waits behind
          * the stale bytes (see STATE_HELD) and goes in when they are used up. */
-        if (d->end == d->max_frame) {
-            move_to_front(d); /* the timeout failed the candidate at `start`: start > 0 */
-        }
-        d->buffer[d->end] = byte;
+        d->checksum = byte;
         set_flag(d, STATE_HELD);
         d->last_byte_ms = now_ms;
     }
