@@ -338,7 +338,7 @@ static void clear_flag(ctrlbus_decoder_t *d, uint8_t flag)
 /* The header size of a candidate: flag and length bytes. */
 static uint32_t header_size(uint8_t flag)
 {
-    return 2u + (uint32_t)(flag >> 6); /* 0x10 >> 6 is 0, 0x50 >> 6 is 1 */
+    return flag == CTRLBUS_FLAG_STANDARD ? 2u : 3u;
 }
 
 /* The LEN field of a candidate whose header is at bytes[0..header). */
