@@ -351,6 +351,26 @@ static uint32_t length_field(const uint8_t *bytes, uint32_t header)
     return len_field;
 }
 
+/* Adds n to the counter of d->stats that belongs to rx: frames (CTRLBUS_RX_FRAME), bytes_discarded
+ * (CTRLBUS_RX_GARBAGE), then checksum_errors, oversize, timeouts and empty_frames (the events, in
+ * the order of ctrlbus_rx_t), and resyncs (COUNT_RESYNCS, after them). */
+#define COUNT_RESYNCS 7u
+typedef char stats_follow_rx_order[(offsetof(ctrlbus_decoder_stats_t, checksum_errors) ==
+                                        (CTRLBUS_RX_CHECKSUM_ERROR - 1u) * sizeof(uint32_t) &&
+                                    offsetof(ctrlbus_decoder_stats_t, empty_frames) ==
+                                        (CTRLBUS_RX_EMPTY_FRAME - 1u) * sizeof(uint32_t) &&
+                                    offsetof(ctrlbus_decoder_stats_t, resyncs) ==
+                                        (COUNT_RESYNCS - 1u) * sizeof(uint32_t))
+                                       ? 1
+                                       : -1];
+
+static void add_count(ctrlbus_decoder_t *d, unsigned rx, uint32_t n)
+{
+    if (d->stats != NULL) {
+        *(uint32_t *)(void *)((char *)d->stats + (rx - 1u) * sizeof(uint32_t)) += n;
+    }
+}
+
 int32_t ctrlbus_decoder_init(ctrlbus_decoder_t *decoder, uint8_t *buffer, size_t buffer_size,
                              uint16_t timeout_ms, ctrlbus_decoder_stats_t *stats)
 {
@@ -368,9 +388,10 @@ int32_t ctrlbus_decoder_init(ctrlbus_decoder_t *decoder, uint8_t *buffer, size_t
     decoder->timeout_ms = timeout_ms;
     decoder->last_byte_ms = 0;
     if (stats != NULL) {
-        /* Field by field, so that no memset is pulled in on an MCU. */
-        stats->frames = stats->bytes_discarded = stats->checksum_errors = stats->oversize = 0;
-        stats->timeouts = stats->empty_frames = stats->resyncs = 0;
+        /* Counter by counter (see add_count()), so that no memset is pulled in on an MCU. */
+        for (unsigned i = 0; i < COUNT_RESYNCS; i++) {
+            *(uint32_t *)(void *)((char *)stats + i * sizeof(uint32_t)) = 0;
+        }
     }
     ctrlbus_decoder_reset(decoder);
     return CTRLBUS_OK;
@@ -457,14 +478,9 @@ static ctrlbus_rx_t yield_frame(ctrlbus_decoder_t *d)
 static bool fail_candidate(ctrlbus_decoder_t *d, ctrlbus_rx_t kind)
 {
     bool outermost = !(d->state & STATE_IN_SPAN);
-    ctrlbus_decoder_stats_t *stats = d->stats;
-    if (stats != NULL) {
-        count(kind == CTRLBUS_RX_CHECKSUM_ERROR ? &stats->checksum_errors
-              : kind == CTRLBUS_RX_OVERSIZE     ? &stats->oversize
-                                                : &stats->timeouts);
-        count(&stats->resyncs);
-        count(&stats->bytes_discarded);
-    }
+    add_count(d, kind, 1u);
+    add_count(d, COUNT_RESYNCS, 1u);
+    add_count(d, CTRLBUS_RX_GARBAGE, 1u);
     d->start++;
     d->checksum = 0;
     set_flag(d, STATE_IN_SPAN);
@@ -595,9 +611,9 @@ static ctrlbus_rx_t apply_timeout(ctrlbus_decoder_t *d, uint32_t now_ms)
     }
     d->complete_at = 0;
     set_flag(d, STATE_FLUSHING);
-    if (fail_candidate(d, CTRLBUS_RX_TIMEOUT)) {
-        return raise_event(d, CTRLBUS_RX_TIMEOUT); /* the stale bytes are rescanned after it */
-    }
+    d->checksum = 0; /* the XOR of buffer[start..start) for the scan below */
+    /* The waiting candidate at `start` is incomplete, so the scan fails it as a timeout first;
+     * the stale bytes after it are rescanned (the same scan, or after its event is taken). */
     return scan(d, d->start);
 }
 
@@ -872,12 +888,7 @@ size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, siz
 
 void ctrlbus_decoder_tick(ctrlbus_decoder_t *decoder, uint32_t now_ms)
 {
-    ctrlbus_decoder_t *d = decoder;
-    if (d != NULL && !(d->state & STATE_WAITING) &&
-        (d->end == d->start || !timed_out(d, now_ms))) {
-        return; /* the usual case, called from every main-loop pass: nothing to do */
-    }
-    (void)ctrlbus_decoder_feed(decoder, NULL, 0, now_ms);
+    (void)ctrlbus_decoder_feed(decoder, NULL, 0u, now_ms); /* a feed of no bytes */
 }
 
 /* Hands out the pending result rx (already cleared from the state). */
@@ -948,32 +959,12 @@ ctrlbus_rx_t ctrlbus_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *f
  * The same rules and the same state bits, in less code. The scan position is always the front of
  * the buffer: bytes dropped there (discarded, or a frame handed out) only advance `start`, and the
  * next scan moves what follows them to the front first. A candidate's checksum is the XOR of its
- * bytes, taken once when it is complete; d->complete_at stays 0, and d->checksum holds the byte
- * that STATE_HELD keeps. Between calls only an incomplete candidate (or nothing) is buffered, so a
+ * bytes, taken once when it is complete; d->complete_at holds the size of the last frame found
+ * (for next()), and d->checksum the byte that STATE_HELD keeps. Between calls only an incomplete candidate (or nothing) is buffered, so a
  * scan that finds nothing new costs O(1), and feed() and next() can simply scan; a waiting
  * candidate is shorter than max_frame, so the byte after it always fits. A result found is held in
  * the state until next() hands it out; after that STATE_RESCAN says that more may wait in the
  * buffered bytes. */
-
-/* Adds n to the counter of d->stats that belongs to rx: frames (CTRLBUS_RX_FRAME), bytes_discarded
- * (CTRLBUS_RX_GARBAGE), then checksum_errors, oversize, timeouts and empty_frames (the events, in
- * the order of ctrlbus_rx_t), and resyncs (COUNT_RESYNCS, after them). */
-#define COUNT_RESYNCS 7u
-typedef char stats_follow_rx_order[(offsetof(ctrlbus_decoder_stats_t, checksum_errors) ==
-                                        (CTRLBUS_RX_CHECKSUM_ERROR - 1u) * sizeof(uint32_t) &&
-                                    offsetof(ctrlbus_decoder_stats_t, empty_frames) ==
-                                        (CTRLBUS_RX_EMPTY_FRAME - 1u) * sizeof(uint32_t) &&
-                                    offsetof(ctrlbus_decoder_stats_t, resyncs) ==
-                                        (COUNT_RESYNCS - 1u) * sizeof(uint32_t))
-                                       ? 1
-                                       : -1];
-
-static void add_count(ctrlbus_decoder_t *d, unsigned rx, uint32_t n)
-{
-    if (d->stats != NULL) {
-        *(uint32_t *)(void *)((char *)d->stats + (rx - 1u) * sizeof(uint32_t)) += n;
-    }
-}
 
 /* Rules 1, 2 and 4: drops `drop` bytes at `start` that are not part of a yielded frame, as rx:
  * CTRLBUS_RX_GARBAGE (a byte while hunting), CTRLBUS_RX_EMPTY_FRAME, or a failure (its flag byte).
@@ -1044,6 +1035,7 @@ static bool scan(ctrlbus_decoder_t *d)
                 } else if (len_field != 0u) {
                     add_count(d, CTRLBUS_RX_FRAME, 1u);
                     clear_flag(d, STATE_EVENT_SINCE_FRAME);
+                    d->complete_at = size; /* for next() */
                     found = CTRLBUS_RX_FRAME;
                     break;
                 } else {
@@ -1066,6 +1058,20 @@ static bool scan(ctrlbus_decoder_t *d)
     return found != CTRLBUS_RX_NONE;
 }
 
+/* What every call that takes bytes does first: the results the buffered bytes still hold, then
+ * rule 5 at now_ms (the candidate at the front fails, and the bytes after it are rescanned as
+ * stale). Returns whether a result waits. */
+static bool results_first(ctrlbus_decoder_t *d, uint32_t now_ms)
+{
+    if (d->state & STATE_PENDING_MASK) {
+        return true;
+    }
+    if (d->end != d->start && timed_out(d, now_ms)) {
+        set_flag(d, STATE_FLUSHING);
+    }
+    return scan(d);
+}
+
 size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, size_t len,
                             uint32_t now_ms)
 {
@@ -1073,15 +1079,7 @@ size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, siz
     if (d == NULL || d->buffer == NULL) {
         return len; /* nowhere to put them: report them taken so a caller's loop ends */
     }
-    if (d->state & STATE_PENDING_MASK) {
-        return 0; /* results first */
-    }
-    if (d->end != d->start && timed_out(d, now_ms)) {
-        /* Rule 5: the candidate at `start` fails, and the bytes after it are rescanned as stale
-         * (after the results a rescan may still have to find in front of it). */
-        set_flag(d, STATE_FLUSHING);
-    }
-    if (scan(d)) {
+    if (results_first(d, now_ms)) {
         return 0;
     }
     if (data == NULL || len == 0u) {
@@ -1097,9 +1095,12 @@ size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, siz
     return len;
 }
 
+/* (Not a feed of no bytes, so that a base linking push, next and tick leaves feed out.) */
 void ctrlbus_decoder_tick(ctrlbus_decoder_t *decoder, uint32_t now_ms)
 {
-    (void)ctrlbus_decoder_feed(decoder, NULL, 0u, now_ms);
+    if (decoder != NULL && decoder->buffer != NULL) {
+        (void)results_first(decoder, now_ms);
+    }
 }
 
 ctrlbus_rx_t ctrlbus_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *frame)
@@ -1117,14 +1118,14 @@ ctrlbus_rx_t ctrlbus_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *f
         /* The frame lies at the front; scanning resumes after it at the next call. */
         const uint8_t *bytes = d->buffer;
         uint32_t header = header_size(bytes[0]);
-        uint32_t len_field = length_field(bytes, header);
+        uint32_t size = d->complete_at;
         if (frame != NULL) {
             frame->is_long = header == 3u;
             frame->cmd = bytes[header];
             frame->payload = bytes + header + 1u;
-            frame->payload_len = (size_t)(len_field - 1u);
+            frame->payload_len = (size_t)(size - header - 2u);
         }
-        d->start = header + len_field + 1u;
+        d->start = size;
     }
     if (rx != CTRLBUS_RX_NONE && (d->start != d->end || (d->state & STATE_HELD))) {
         set_flag(d, STATE_RESCAN); /* more results may wait in the bytes still buffered */
@@ -1142,13 +1143,16 @@ ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte,
     if (d->state & STATE_WAITING) {
         return CTRLBUS_RX_BUSY;
     }
-    if (ctrlbus_decoder_feed(d, &byte, 1u, now_ms) == 0u) {
+    if (results_first(d, now_ms)) {
         /* A timeout applied before the byte, and its results come first: the byte waits behind
          * the stale bytes (see STATE_HELD) and goes in when they are used up. */
         d->checksum = byte;
         set_flag(d, STATE_HELD);
-        d->last_byte_ms = now_ms;
+    } else {
+        d->buffer[d->end++] = byte; /* as a feed of one byte */
+        (void)scan(d);
     }
+    d->last_byte_ms = now_ms;
     return ctrlbus_decoder_next(d, frame);
 }
 #endif
@@ -1379,38 +1383,26 @@ static ctrlbus_rx_t push_last_byte(ctrlbus_decoder_t *d, uint8_t byte, ctrlbus_f
     return CTRLBUS_RX_FRAME;
 }
 
-/* A byte that arrives after the buffered candidate went stale: the timeout comes first, and its
- * results (the failure, then what the rescan of the stale bytes finds) come out ahead of the byte,
- * which waits at buffer[end] until they have been taken (STATE_HELD; resume() takes it). */
-RARE static ctrlbus_rx_t push_after_timeout(ctrlbus_decoder_t *d, uint8_t byte, uint32_t now_ms,
-                                            ctrlbus_frame_t *frame)
-{
-    d->complete_at = 0;
-    if (d->end == d->max_frame) {
-        move_to_front(d); /* a waiting candidate is shorter than max_frame: start > 0 */
-    }
-    d->buffer[d->end] = byte;
-    set_flag(d, STATE_HELD);
-    ctrlbus_rx_t rx = apply_timeout(d, now_ms);
-    d->last_byte_ms = now_ms;
-    if (rx == CTRLBUS_RX_NONE) {
-        rx = resume(d); /* the stale bytes held nothing: the byte goes in now */
-    }
-    if (rx == CTRLBUS_RX_NONE) {
-        arm_inline_path(d);
-        return rx;
-    }
-    hold(d, rx);
-    return ctrlbus_decoder_next(d, frame);
-}
-
 /* Everything push_slow() does not settle itself (garbage, a failure, an empty frame, a full buffer,
- * an oversize length): the general path, as a feed of one byte and the first result after it. */
+ * an oversize length, a timeout): the general path, as a feed of one byte and the first result
+ * after it. When a timeout applies before the byte, its results (the failure, then what the rescan
+ * of the stale bytes finds) come out ahead of the byte, which waits at buffer[end] until they have
+ * been taken (STATE_HELD; resume() takes it). */
 RARE static ctrlbus_rx_t push_general(ctrlbus_decoder_t *d, uint8_t byte, uint32_t now_ms,
                                       ctrlbus_frame_t *frame)
 {
     d->complete_at = 0;
-    (void)ctrlbus_decoder_feed(d, &byte, 1u, now_ms);
+    if (d->end == d->max_frame) {
+        /* Room behind the waiting candidate (shorter than max_frame: start > 0), made before a
+         * rescan can find a frame in it: a held byte then goes to buffer[0] without touching
+         * the frame handed out. */
+        move_to_front(d);
+    }
+    if (ctrlbus_decoder_feed(d, &byte, 1u, now_ms) == 0u) {
+        d->buffer[d->end] = byte;
+        set_flag(d, STATE_HELD);
+        d->last_byte_ms = now_ms;
+    }
     ctrlbus_rx_t rx = ctrlbus_decoder_next(d, frame);
     if (rx == CTRLBUS_RX_NONE) {
         arm_inline_path(d);
@@ -1452,7 +1444,7 @@ ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte,
     uint32_t end = d->end;
     if (now_ms != d->last_byte_ms) {
         if (end != start && timed_out(d, now_ms)) {
-            return push_after_timeout(d, byte, now_ms, frame);
+            return push_general(d, byte, now_ms, frame); /* the timeout first */
         }
         d->last_byte_ms = now_ms;
     }
