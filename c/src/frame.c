@@ -960,11 +960,11 @@ ctrlbus_rx_t ctrlbus_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *f
  * the buffer: bytes dropped there (discarded, or a frame handed out) only advance `start`, and the
  * next scan moves what follows them to the front first. A candidate's checksum is the XOR of its
  * bytes, taken once when it is complete; d->complete_at holds the size of the last frame found
- * (for next()), and d->checksum the byte that STATE_HELD keeps. Between calls only an incomplete candidate (or nothing) is buffered, so a
- * scan that finds nothing new costs O(1), and feed() and next() can simply scan; a waiting
- * candidate is shorter than max_frame, so the byte after it always fits. A result found is held in
- * the state until next() hands it out; after that STATE_RESCAN says that more may wait in the
- * buffered bytes. */
+ * (for next()), and d->checksum the byte that STATE_HELD keeps. Between calls only an incomplete
+ * candidate (or nothing) is buffered, so a scan that finds nothing new costs O(1), and every call
+ * can simply scan first; a waiting candidate is shorter than max_frame, so the byte after it
+ * always fits. A result found is held in the state until next() hands it out; after that
+ * STATE_RESCAN says that more may wait in the buffered bytes. */
 
 /* Rules 1, 2 and 4: drops `drop` bytes at `start` that are not part of a yielded frame, as rx:
  * CTRLBUS_RX_GARBAGE (a byte while hunting), CTRLBUS_RX_EMPTY_FRAME, or a failure (its flag byte).
@@ -1054,7 +1054,8 @@ static bool scan(ctrlbus_decoder_t *d)
             break;
         }
     }
-    d->state = (uint8_t)((d->state & (uint8_t)~(STATE_PENDING_MASK | STATE_RESCAN)) | (uint8_t)found);
+    d->state =
+        (uint8_t)((d->state & (uint8_t)~(STATE_PENDING_MASK | STATE_RESCAN)) | (uint8_t)found);
     return found != CTRLBUS_RX_NONE;
 }
 
@@ -1149,8 +1150,7 @@ ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte,
         d->checksum = byte;
         set_flag(d, STATE_HELD);
     } else {
-        d->buffer[d->end++] = byte; /* as a feed of one byte */
-        (void)scan(d);
+        d->buffer[d->end++] = byte; /* as a feed of one byte; next() scans it */
     }
     d->last_byte_ms = now_ms;
     return ctrlbus_decoder_next(d, frame);
