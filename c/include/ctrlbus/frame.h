@@ -202,7 +202,8 @@ typedef struct {
     uint32_t start;        /* first byte of the current candidate */
     uint32_t end;          /* one past the last buffered byte */
     uint32_t complete_at;  /* the `end` that completes the buffered candidate, when known and
-                            * ctrlbus_decoder_push() may append to it inline; else 0 */
+                            * ctrlbus_decoder_push() may append to it inline; else 0 (without
+                            * the bulk path: the size of the last frame found) */
     uint32_t last_byte_ms; /* time of the last byte fed */
     uint16_t timeout_ms;   /* 0 = no inter-byte timeout */
     uint8_t checksum;      /* XOR of buffer[start..end) while waiting for more bytes (without
@@ -270,8 +271,8 @@ void ctrlbus_decoder_reset(ctrlbus_decoder_t *decoder);
  * loop included; docs/performance.md has the current figures): fed in 64-byte chunks about 9
  * instructions per byte at -O2 (level 1) and 13 at -Os (level 2), against about 68 without the
  * bulk path; ctrlbus_decoder_take() on the same chunks about 3.2 (inlined) and 7. Code on a
- * Cortex-M0+ at -Os (arm-none-eabi-gcc, frame.c's whole decoder): level 0 about 0.9 KB, of which
- * a base that uses push, next and tick links about 0.8 KB; level 2 about 2.6 KB; level 1 about
+ * Cortex-M0+ at -Os (arm-none-eabi-gcc, frame.c's whole decoder): level 0 about 1.0 KB, of which
+ * a base that uses push, next and tick links about 0.7 KB; level 2 about 2.5 KB; level 1 about
  * 3.5 KB. Set CTRLBUS_DECODER_FAST=0 where flash matters more than cycles. */
 size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, size_t len,
                             uint32_t now_ms);
