@@ -972,18 +972,23 @@ ctrlbus_rx_t ctrlbus_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *f
 RARE static ctrlbus_rx_t discard(ctrlbus_decoder_t *d, unsigned rx, uint32_t drop)
 {
     unsigned quiet = d->state & STATE_IN_SPAN; /* rule 4: an echo of a fault already reported */
+    ctrlbus_decoder_stats_t *stats = d->stats;
+    if (stats != NULL) {
+        stats->bytes_discarded += drop;
+    }
     if (rx == CTRLBUS_RX_GARBAGE) {
         quiet |= d->state & STATE_EVENT_SINCE_FRAME; /* rule 1: one event per gap */
     } else {
         add_count(d, rx, 1u);
         if (rx != CTRLBUS_RX_EMPTY_FRAME) {
             /* a failure: everything buffered after its flag is its span */
-            add_count(d, COUNT_RESYNCS, 1u);
+            if (stats != NULL) {
+                stats->resyncs += 1u;
+            }
             set_flag(d, STATE_IN_SPAN);
         }
     }
     d->start = drop; /* (the scan is at the front) */
-    add_count(d, CTRLBUS_RX_GARBAGE, drop);
     if (quiet) {
         return CTRLBUS_RX_NONE;
     }
