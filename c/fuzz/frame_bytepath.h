@@ -1,8 +1,10 @@
 /* SPDX-License-Identifier: MIT */
-/* The decoder of frame.c built once more without its bulk path (CTRLBUS_DECODER_FAST 0, the
- * byte-by-byte scan alone) and under other names, so that a fuzz target can run both side by side
- * and require the same results from them: the byte path is the decoder as first written, the bulk
- * path an optimisation that must not change a thing. Same types and contracts as ctrlbus/frame.h.
+/* The decoder of frame.c built once more without its bulk path (CTRLBUS_DECODER_FAST 0) and under
+ * other names, so that a fuzz target can run both side by side and require the same results from
+ * them. At level 0 frame.c has a core of its own (the smallest: one scan at the buffer's front, a
+ * candidate's checksum taken once), written apart from the byte path that the bulk path builds on
+ * (levels 1 and 2): two implementations of the same rules that must not differ in a thing. Same
+ * types and contracts as ctrlbus/frame.h.
  * The lean_ twin is frame.c at CTRLBUS_DECODER_FAST 2, the level size-optimised builds get. */
 #ifndef CTRLBUS_FUZZ_FRAME_BYTEPATH_H
 #define CTRLBUS_FUZZ_FRAME_BYTEPATH_H

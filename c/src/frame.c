@@ -305,7 +305,8 @@ int32_t ctrlbus_frame_encode(uint8_t *out, size_t out_size, uint8_t cmd, const u
  * last failure. */
 #define STATE_IN_SPAN 0x40u
 /* ctrlbus_decoder_push() took a byte while a timeout applied before it: the byte waits at
- * buffer[end] (outside the buffered bytes) until the results of the timeout have been taken. */
+ * buffer[end] (outside the buffered bytes; without the bulk path, in d->checksum) until the
+ * results of the timeout have been taken. */
 #define STATE_HELD 0x80u
 /* Results or work that must come before any new byte. */
 #define STATE_WAITING (STATE_PENDING_MASK | STATE_RESCAN | STATE_HELD)
@@ -335,11 +336,6 @@ static void clear_flag(ctrlbus_decoder_t *d, uint8_t flag)
     d->state = (uint8_t)(d->state & (uint8_t)~flag);
 }
 
-static void count(uint32_t *counter)
-{
-    *counter += 1u;
-}
-
 /* The header size of a candidate: flag and length bytes. */
 static uint32_t header_size(uint8_t flag)
 {
@@ -354,6 +350,26 @@ static uint32_t length_field(const uint8_t *bytes, uint32_t header)
         len_field |= (uint32_t)bytes[2] << 8;
     }
     return len_field;
+}
+
+/* Adds n to the counter of d->stats that belongs to rx: frames (CTRLBUS_RX_FRAME), bytes_discarded
+ * (CTRLBUS_RX_GARBAGE), then checksum_errors, oversize, timeouts and empty_frames (the events, in
+ * the order of ctrlbus_rx_t), and resyncs (COUNT_RESYNCS, after them). */
+#define COUNT_RESYNCS 7u
+typedef char stats_follow_rx_order[(offsetof(ctrlbus_decoder_stats_t, checksum_errors) ==
+                                        (CTRLBUS_RX_CHECKSUM_ERROR - 1u) * sizeof(uint32_t) &&
+                                    offsetof(ctrlbus_decoder_stats_t, empty_frames) ==
+                                        (CTRLBUS_RX_EMPTY_FRAME - 1u) * sizeof(uint32_t) &&
+                                    offsetof(ctrlbus_decoder_stats_t, resyncs) ==
+                                        (COUNT_RESYNCS - 1u) * sizeof(uint32_t))
+                                       ? 1
+                                       : -1];
+
+static void add_count(ctrlbus_decoder_t *d, unsigned rx, uint32_t n)
+{
+    if (d->stats != NULL) {
+        *(uint32_t *)(void *)((char *)d->stats + (rx - 1u) * sizeof(uint32_t)) += n;
+    }
 }
 
 int32_t ctrlbus_decoder_init(ctrlbus_decoder_t *decoder, uint8_t *buffer, size_t buffer_size,
@@ -373,7 +389,7 @@ int32_t ctrlbus_decoder_init(ctrlbus_decoder_t *decoder, uint8_t *buffer, size_t
     decoder->timeout_ms = timeout_ms;
     decoder->last_byte_ms = 0;
     if (stats != NULL) {
-        /* Field by field, so that no memset is pulled in on an MCU. */
+        /* Field by field, so that no memset is pulled in on an MCU (gcc makes one of a loop). */
         stats->frames = stats->bytes_discarded = stats->checksum_errors = stats->oversize = 0;
         stats->timeouts = stats->empty_frames = stats->resyncs = 0;
     }
@@ -413,6 +429,32 @@ const char *ctrlbus_rx_name(ctrlbus_rx_t rx)
     }
 }
 
+/* Rule 5 would fail the partial candidate (if there is one) at now_ms. */
+static bool timed_out(const ctrlbus_decoder_t *d, uint32_t now_ms)
+{
+    uint32_t elapsed = now_ms - d->last_byte_ms;
+    return d->timeout_ms != 0 && elapsed > d->timeout_ms && elapsed < TIME_BACKWARDS;
+}
+
+/* Moves the partial candidate to the front of the buffer, to make room behind it. */
+static void move_to_front(ctrlbus_decoder_t *d)
+{
+    uint32_t keep = d->end - d->start;
+    for (uint32_t i = 0; i < keep; i++) { /* a plain loop: no libc needed on an MCU */
+        d->buffer[i] = d->buffer[d->start + i];
+    }
+    d->start = 0;
+    d->end = keep;
+}
+
+#if CTRLBUS_DECODER_FAST
+/* ---- the byte path, with the state the bulk path keeps ------------------------------------- */
+
+static void count(uint32_t *counter)
+{
+    *counter += 1u;
+}
+
 /* Records an event (rule 1's "an event was raised since the last frame") and returns it. */
 static ctrlbus_rx_t raise_event(ctrlbus_decoder_t *d, ctrlbus_rx_t event)
 {
@@ -436,14 +478,9 @@ static ctrlbus_rx_t yield_frame(ctrlbus_decoder_t *d)
 static bool fail_candidate(ctrlbus_decoder_t *d, ctrlbus_rx_t kind)
 {
     bool outermost = !(d->state & STATE_IN_SPAN);
-    ctrlbus_decoder_stats_t *stats = d->stats;
-    if (stats != NULL) {
-        count(kind == CTRLBUS_RX_CHECKSUM_ERROR ? &stats->checksum_errors
-              : kind == CTRLBUS_RX_OVERSIZE     ? &stats->oversize
-                                                : &stats->timeouts);
-        count(&stats->resyncs);
-        count(&stats->bytes_discarded);
-    }
+    add_count(d, kind, 1u);
+    add_count(d, COUNT_RESYNCS, 1u);
+    add_count(d, CTRLBUS_RX_GARBAGE, 1u);
     d->start++;
     d->checksum = 0;
     set_flag(d, STATE_IN_SPAN);
@@ -566,13 +603,6 @@ static ctrlbus_rx_t resume(ctrlbus_decoder_t *d)
     return scan(d, d->end - 1u);
 }
 
-/* Rule 5 would fail the partial candidate (if there is one) at now_ms. */
-static bool timed_out(const ctrlbus_decoder_t *d, uint32_t now_ms)
-{
-    uint32_t elapsed = now_ms - d->last_byte_ms;
-    return d->timeout_ms != 0 && elapsed > d->timeout_ms && elapsed < TIME_BACKWARDS;
-}
-
 /* Rule 5, checked before new bytes are taken. Returns a result to hold, or NONE. */
 static ctrlbus_rx_t apply_timeout(ctrlbus_decoder_t *d, uint32_t now_ms)
 {
@@ -581,21 +611,10 @@ static ctrlbus_rx_t apply_timeout(ctrlbus_decoder_t *d, uint32_t now_ms)
     }
     d->complete_at = 0;
     set_flag(d, STATE_FLUSHING);
-    if (fail_candidate(d, CTRLBUS_RX_TIMEOUT)) {
-        return raise_event(d, CTRLBUS_RX_TIMEOUT); /* the stale bytes are rescanned after it */
-    }
+    d->checksum = 0; /* the XOR of buffer[start..start) for the scan below */
+    /* The waiting candidate at `start` is incomplete, so the scan fails it as a timeout first;
+     * the stale bytes after it are rescanned (the same scan, or after its event is taken). */
     return scan(d, d->start);
-}
-
-/* Moves the partial candidate to the front of the buffer, to make room behind it. */
-static void move_to_front(ctrlbus_decoder_t *d)
-{
-    uint32_t keep = d->end - d->start;
-    for (uint32_t i = 0; i < keep; i++) { /* a plain loop: no libc needed on an MCU */
-        d->buffer[i] = d->buffer[d->start + i];
-    }
-    d->start = 0;
-    d->end = keep;
 }
 
 #if CTRLBUS_DECODER_FAST
@@ -869,12 +888,7 @@ size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, siz
 
 void ctrlbus_decoder_tick(ctrlbus_decoder_t *decoder, uint32_t now_ms)
 {
-    ctrlbus_decoder_t *d = decoder;
-    if (d != NULL && !(d->state & STATE_WAITING) &&
-        (d->end == d->start || !timed_out(d, now_ms))) {
-        return; /* the usual case, called from every main-loop pass: nothing to do */
-    }
-    (void)ctrlbus_decoder_feed(decoder, NULL, 0, now_ms);
+    (void)ctrlbus_decoder_feed(decoder, NULL, 0u, now_ms); /* a feed of no bytes */
 }
 
 /* Hands out the pending result rx (already cleared from the state). */
@@ -938,6 +952,215 @@ ctrlbus_rx_t ctrlbus_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *f
     return hand_out(d, frame, rx);
 #endif
 }
+
+#else /* CTRLBUS_DECODER_FAST == 0 */
+/* ---- the byte path alone: the smallest decoder ------------------------------------------------
+ *
+ * The same rules and the same state bits, in less code. The scan position is always the front of
+ * the buffer: bytes dropped there (discarded, or a frame handed out) only advance `start`, and the
+ * next scan moves what follows them to the front first. A candidate's checksum is the XOR of its
+ * bytes, taken once when it is complete; d->complete_at holds the size of the last frame found
+ * (for next()), and d->checksum the byte that STATE_HELD keeps. Between calls only an incomplete
+ * candidate (or nothing) is buffered, so a scan that finds nothing new costs O(1), and every call
+ * can simply scan first; a waiting candidate is shorter than max_frame, so the byte after it
+ * always fits. A result found is held in the state until next() hands it out; after that
+ * STATE_RESCAN says that more may wait in the buffered bytes. */
+
+/* Rules 1, 2 and 4: drops `drop` bytes at `start` that are not part of a yielded frame, as rx:
+ * CTRLBUS_RX_GARBAGE (a byte while hunting), CTRLBUS_RX_EMPTY_FRAME, or a failure (its flag byte).
+ * Returns rx when it raises its event, else CTRLBUS_RX_NONE. */
+RARE static ctrlbus_rx_t discard(ctrlbus_decoder_t *d, unsigned rx, uint32_t drop)
+{
+    unsigned quiet = d->state & STATE_IN_SPAN; /* rule 4: an echo of a fault already reported */
+    ctrlbus_decoder_stats_t *stats = d->stats;
+    if (stats != NULL) {
+        stats->bytes_discarded += drop;
+    }
+    if (rx == CTRLBUS_RX_GARBAGE) {
+        quiet |= d->state & STATE_EVENT_SINCE_FRAME; /* rule 1: one event per gap */
+    } else {
+        add_count(d, rx, 1u);
+        if (rx != CTRLBUS_RX_EMPTY_FRAME) {
+            /* a failure: everything buffered after its flag is its span */
+            if (stats != NULL) {
+                stats->resyncs += 1u;
+            }
+            set_flag(d, STATE_IN_SPAN);
+        }
+    }
+    d->start = drop; /* (the scan is at the front) */
+    if (quiet) {
+        return CTRLBUS_RX_NONE;
+    }
+    set_flag(d, STATE_EVENT_SINCE_FRAME);
+    return (ctrlbus_rx_t)rx;
+}
+
+/* Rules 1-5 over the buffered bytes, from `start`: finds the first result (a frame stays at
+ * `start` for next() to hand out) and records it as waiting for next(), or none when more bytes
+ * are needed; a rescan is no longer due. Returns whether there is one. */
+static bool scan(ctrlbus_decoder_t *d)
+{
+    ctrlbus_rx_t found;
+    for (;;) {
+        if (d->start != 0u) {
+            move_to_front(d); /* the bytes dropped go */
+        }
+        uint32_t avail = d->end;
+        const uint8_t *cand = d->buffer;
+        unsigned rx = CTRLBUS_RX_GARBAGE;
+        uint32_t drop = 1u;
+        if (avail == 0u) {
+            /* Run empty: leave any span (nothing buffered is in it any more). A byte held behind
+             * the stale bytes of a timeout goes in now. */
+            unsigned held = d->state & STATE_HELD;
+            d->buffer[0] = d->checksum;
+            d->end = held ? 1u : 0u;
+            clear_flag(d, STATE_FLUSHING | STATE_IN_SPAN | STATE_HELD);
+            if (held) {
+                continue;
+            }
+            found = CTRLBUS_RX_NONE;
+            break;
+        }
+        if ((cand[0] | 0x40u) == CTRLBUS_FLAG_LONG) {
+            /* Rules 2-3: a candidate; its size is known once its header is buffered. */
+            uint32_t header = header_size(cand[0]);
+            uint32_t len_field = 0u;
+            uint32_t size = 0u;
+            if (avail >= header) {
+                len_field = length_field(cand, header);
+                size = header + len_field + 1u;
+            }
+            if (size > d->max_frame) {
+                rx = CTRLBUS_RX_OVERSIZE;
+            } else if (size != 0u && avail >= size) {
+                if (xor_bytes(0u, cand, (size_t)size) != 0u) {
+                    rx = CTRLBUS_RX_CHECKSUM_ERROR;
+                } else if (len_field != 0u) {
+                    add_count(d, CTRLBUS_RX_FRAME, 1u);
+                    clear_flag(d, STATE_EVENT_SINCE_FRAME);
+                    d->complete_at = size; /* for next() */
+                    found = CTRLBUS_RX_FRAME;
+                    break;
+                } else {
+                    rx = CTRLBUS_RX_EMPTY_FRAME; /* well-formed, no command: all discarded */
+                    drop = size;
+                }
+            } else if (d->state & STATE_FLUSHING) {
+                rx = CTRLBUS_RX_TIMEOUT; /* rule 5: a stale partial frame */
+            } else {
+                found = CTRLBUS_RX_NONE; /* incomplete: wait for more bytes */
+                break;
+            }
+        }
+        found = discard(d, rx, drop);
+        if (found != CTRLBUS_RX_NONE) {
+            break;
+        }
+    }
+    d->state =
+        (uint8_t)((d->state & (uint8_t)~(STATE_PENDING_MASK | STATE_RESCAN)) | (uint8_t)found);
+    return found != CTRLBUS_RX_NONE;
+}
+
+/* What every call that takes bytes does first: the results the buffered bytes still hold, then
+ * rule 5 at now_ms (the candidate at the front fails, and the bytes after it are rescanned as
+ * stale). Returns whether a result waits. */
+static bool results_first(ctrlbus_decoder_t *d, uint32_t now_ms)
+{
+    if (d->state & STATE_PENDING_MASK) {
+        return true;
+    }
+    if (d->end != d->start && timed_out(d, now_ms)) {
+        set_flag(d, STATE_FLUSHING);
+    }
+    return scan(d);
+}
+
+size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, size_t len,
+                            uint32_t now_ms)
+{
+    ctrlbus_decoder_t *d = decoder;
+    if (d == NULL || d->buffer == NULL) {
+        return len; /* nowhere to put them: report them taken so a caller's loop ends */
+    }
+    if (results_first(d, now_ms)) {
+        return 0;
+    }
+    if (data == NULL || len == 0u) {
+        return len; /* no bytes: report them all taken so a caller's loop ends */
+    }
+    d->last_byte_ms = now_ms;
+    for (size_t used = 0; used < len;) {
+        d->buffer[d->end++] = data[used++]; /* behind a waiting candidate (at the front) */
+        if (scan(d)) {
+            return used;
+        }
+    }
+    return len;
+}
+
+/* (Not a feed of no bytes, so that a base linking push, next and tick leaves feed out.) */
+void ctrlbus_decoder_tick(ctrlbus_decoder_t *decoder, uint32_t now_ms)
+{
+    if (decoder != NULL && decoder->buffer != NULL) {
+        (void)results_first(decoder, now_ms);
+    }
+}
+
+ctrlbus_rx_t ctrlbus_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *frame)
+{
+    ctrlbus_decoder_t *d = decoder;
+    if (d == NULL || d->buffer == NULL) {
+        return CTRLBUS_RX_NONE;
+    }
+    if ((d->state & STATE_PENDING_MASK) == 0u) {
+        (void)scan(d);
+    }
+    ctrlbus_rx_t rx = (ctrlbus_rx_t)(d->state & STATE_PENDING_MASK);
+    clear_flag(d, STATE_PENDING_MASK);
+    if (rx == CTRLBUS_RX_FRAME) {
+        /* The frame lies at the front; scanning resumes after it at the next call. */
+        const uint8_t *bytes = d->buffer;
+        uint32_t header = header_size(bytes[0]);
+        uint32_t size = d->complete_at;
+        if (frame != NULL) {
+            frame->is_long = header == 3u;
+            frame->cmd = bytes[header];
+            frame->payload = bytes + header + 1u;
+            frame->payload_len = (size_t)(size - header - 2u);
+        }
+        d->start = size;
+    }
+    if (rx != CTRLBUS_RX_NONE && (d->start != d->end || (d->state & STATE_HELD))) {
+        set_flag(d, STATE_RESCAN); /* more results may wait in the bytes still buffered */
+    }
+    return rx;
+}
+
+ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte, uint32_t now_ms,
+                                       ctrlbus_frame_t *frame)
+{
+    ctrlbus_decoder_t *d = decoder;
+    if (d == NULL || d->buffer == NULL) {
+        return CTRLBUS_RX_NONE;
+    }
+    if (d->state & STATE_WAITING) {
+        return CTRLBUS_RX_BUSY;
+    }
+    if (results_first(d, now_ms)) {
+        /* A timeout applied before the byte, and its results come first: the byte waits behind
+         * the stale bytes (see STATE_HELD) and goes in when they are used up. */
+        d->checksum = byte;
+        set_flag(d, STATE_HELD);
+    } else {
+        d->buffer[d->end++] = byte; /* as a feed of one byte; next() scans it */
+    }
+    d->last_byte_ms = now_ms;
+    return ctrlbus_decoder_next(d, frame);
+}
+#endif
 
 /* ---- take: results straight from the caller's bytes ----------------------------------------- */
 
@@ -1116,6 +1339,7 @@ ctrlbus_rx_t ctrlbus_decoder_take_slow(ctrlbus_decoder_t *decoder, const uint8_t
     return take_general(d, data, len, now_ms, frame);
 }
 
+#if CTRLBUS_DECODER_FAST
 /* ---- push: one byte per call ---------------------------------------------------------------- */
 
 /* Lets push()'s inline path take the next bytes when the decoder waits for more of a candidate
@@ -1164,38 +1388,26 @@ static ctrlbus_rx_t push_last_byte(ctrlbus_decoder_t *d, uint8_t byte, ctrlbus_f
     return CTRLBUS_RX_FRAME;
 }
 
-/* A byte that arrives after the buffered candidate went stale: the timeout comes first, and its
- * results (the failure, then what the rescan of the stale bytes finds) come out ahead of the byte,
- * which waits at buffer[end] until they have been taken (STATE_HELD; resume() takes it). */
-RARE static ctrlbus_rx_t push_after_timeout(ctrlbus_decoder_t *d, uint8_t byte, uint32_t now_ms,
-                                            ctrlbus_frame_t *frame)
-{
-    d->complete_at = 0;
-    if (d->end == d->max_frame) {
-        move_to_front(d); /* a waiting candidate is shorter than max_frame: start > 0 */
-    }
-    d->buffer[d->end] = byte;
-    set_flag(d, STATE_HELD);
-    ctrlbus_rx_t rx = apply_timeout(d, now_ms);
-    d->last_byte_ms = now_ms;
-    if (rx == CTRLBUS_RX_NONE) {
-        rx = resume(d); /* the stale bytes held nothing: the byte goes in now */
-    }
-    if (rx == CTRLBUS_RX_NONE) {
-        arm_inline_path(d);
-        return rx;
-    }
-    hold(d, rx);
-    return ctrlbus_decoder_next(d, frame);
-}
-
 /* Everything push_slow() does not settle itself (garbage, a failure, an empty frame, a full buffer,
- * an oversize length): the general path, as a feed of one byte and the first result after it. */
+ * an oversize length, a timeout): the general path, as a feed of one byte and the first result
+ * after it. When a timeout applies before the byte, its results (the failure, then what the rescan
+ * of the stale bytes finds) come out ahead of the byte, which waits at buffer[end] until they have
+ * been taken (STATE_HELD; resume() takes it). */
 RARE static ctrlbus_rx_t push_general(ctrlbus_decoder_t *d, uint8_t byte, uint32_t now_ms,
                                       ctrlbus_frame_t *frame)
 {
     d->complete_at = 0;
-    (void)ctrlbus_decoder_feed(d, &byte, 1u, now_ms);
+    if (d->end == d->max_frame) {
+        /* Room behind the waiting candidate (shorter than max_frame: start > 0), made before a
+         * rescan can find a frame in it: a held byte then goes to buffer[0] without touching
+         * the frame handed out. */
+        move_to_front(d);
+    }
+    if (ctrlbus_decoder_feed(d, &byte, 1u, now_ms) == 0u) {
+        d->buffer[d->end] = byte;
+        set_flag(d, STATE_HELD);
+        d->last_byte_ms = now_ms;
+    }
     ctrlbus_rx_t rx = ctrlbus_decoder_next(d, frame);
     if (rx == CTRLBUS_RX_NONE) {
         arm_inline_path(d);
@@ -1237,7 +1449,7 @@ ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte,
     uint32_t end = d->end;
     if (now_ms != d->last_byte_ms) {
         if (end != start && timed_out(d, now_ms)) {
-            return push_after_timeout(d, byte, now_ms, frame);
+            return push_general(d, byte, now_ms, frame); /* the timeout first */
         }
         d->last_byte_ms = now_ms;
     }
@@ -1284,3 +1496,4 @@ ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte,
     d->complete_at = arm;
     return CTRLBUS_RX_NONE;
 }
+#endif /* CTRLBUS_DECODER_FAST */

@@ -202,10 +202,12 @@ typedef struct {
     uint32_t start;        /* first byte of the current candidate */
     uint32_t end;          /* one past the last buffered byte */
     uint32_t complete_at;  /* the `end` that completes the buffered candidate, when known and
-                            * ctrlbus_decoder_push() may append to it inline; else 0 */
+                            * ctrlbus_decoder_push() may append to it inline; else 0 (without
+                            * the bulk path: the size of the last frame found) */
     uint32_t last_byte_ms; /* time of the last byte fed */
     uint16_t timeout_ms;   /* 0 = no inter-byte timeout */
-    uint8_t checksum;      /* XOR of buffer[start..end) while waiting for more bytes */
+    uint8_t checksum;      /* XOR of buffer[start..end) while waiting for more bytes (without
+                            * the bulk path: a byte push() holds behind a timeout's results) */
     uint8_t state;         /* pending result and flags, see frame.c */
 } ctrlbus_decoder_t;
 
@@ -251,6 +253,10 @@ void ctrlbus_decoder_reset(ctrlbus_decoder_t *decoder);
  * up to about max_frame^2 / 4 bytes when the failed span is full of nested false candidates, e.g.
  * 65536 visits for a 512-byte buffer; that work happens in the call that found the failure or in
  * the ctrlbus_decoder_next() calls after it. Nothing depends on history beyond the buffer.
+ * Without the bulk path (CTRLBUS_DECODER_FAST 0) the scan always works at the front of the buffer:
+ * a byte dropped there while bytes are buffered behind it moves them down, which adds up to
+ * max_frame moves per discarded byte during a rescan (a clean link still costs O(1) per byte, and
+ * a frame's checksum is taken once, when its last byte arrives).
  *
  * Speed: frame.c has a bulk path, set by the compile-time option CTRLBUS_DECODER_FAST: 0 = off;
  * 1 = on (the default): a feed takes the bytes of a frame whose length is known in one step (it
@@ -264,9 +270,10 @@ void ctrlbus_decoder_reset(ctrlbus_decoder_t *decoder);
  * Measured with callgrind on x86-64 (bench/c/ctrlbus_parse.c, a Core<->base session, the caller's
  * loop included; docs/performance.md has the current figures): fed in 64-byte chunks about 9
  * instructions per byte at -O2 (level 1) and 13 at -Os (level 2), against about 68 without the
- * bulk path; ctrlbus_decoder_take() on the same chunks about 3.2 (inlined) and 7. On a Cortex-M0+ at -Os,
- * level 2 adds about 0.9 KB of code and level 1 about 1.9 KB; set CTRLBUS_DECODER_FAST=0 where flash
- * matters more than cycles. */
+ * bulk path; ctrlbus_decoder_take() on the same chunks about 3.2 (inlined) and 7. Code on a
+ * Cortex-M0+ at -Os (arm-none-eabi-gcc, frame.c's whole decoder): level 0 about 1.0 KB, of which
+ * a base that uses push, next and tick links about 0.7 KB; level 2 about 2.5 KB; level 1 about
+ * 3.5 KB. Set CTRLBUS_DECODER_FAST=0 where flash matters more than cycles. */
 size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, size_t len,
                             uint32_t now_ms);
 
@@ -279,7 +286,8 @@ size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, siz
  * exchange for three calls of ctrlbus_decoder_push_slow() per frame. take, when nothing is
  * buffered or waiting: a whole valid frame at the start of the input, and the input used up;
  * about 50 instructions of code at each call site, for a call per frame. On by default except
- * when optimising for size; define it to 0 or 1 to choose. */
+ * when optimising for size; define it to 0 or 1 to choose. Without the bulk path
+ * (CTRLBUS_DECODER_FAST 0) only take's inline case exists: push always calls push_slow(). */
 #ifndef CTRLBUS_DECODER_INLINE
 #if defined(__OPTIMIZE_SIZE__)
 #define CTRLBUS_DECODER_INLINE 0
@@ -347,8 +355,9 @@ static inline uint8_t ctrlbus_xor_in_place_(const uint8_t *bytes, uint32_t n)
  * the start of one and a garbage run are settled by ctrlbus_decoder_take_slow() in one step each
  * (a copy into the buffer); failures and the rescan after them take the feed's path (see
  * ctrlbus_decoder_feed()). Over a Core<->base session in 64-byte chunks about 3.2 instructions
- * per byte at -O2 and 7 at -Os on x86-64, the caller's loop included (docs/performance.md). Without the bulk path (CTRLBUS_DECODER_FAST 0) it is the feed loop, but for
- * the inline case (CTRLBUS_DECODER_INLINE). ctrlbus_decoder_take_slow() is the same function
+ * per byte at -O2 and 7 at -Os on x86-64, the caller's loop included (docs/performance.md).
+ * Without the bulk path (CTRLBUS_DECODER_FAST 0) it is the feed loop, but for the inline case
+ * (CTRLBUS_DECODER_INLINE). ctrlbus_decoder_take_slow() is the same function
  * without the inline path, with the same contract: call ctrlbus_decoder_take(). */
 ctrlbus_rx_t ctrlbus_decoder_take_slow(ctrlbus_decoder_t *decoder, const uint8_t **data,
                                        size_t *len, uint32_t now_ms, ctrlbus_frame_t *frame);
@@ -426,7 +435,9 @@ static inline ctrlbus_rx_t ctrlbus_decoder_take(ctrlbus_decoder_t *decoder, cons
  * default unless optimising for size, below) a frame's header and last byte and quiet garbage take
  * inline paths too, and a clean frame makes no call at all. Over a Core<->base session that
  * averages about 18 instructions per byte at -O2 and 21 at -Os on x86-64, calls included
- * (bench/c/ctrlbus_parse.c; docs/performance.md). ctrlbus_decoder_push_slow() is the same function
+ * (bench/c/ctrlbus_parse.c; docs/performance.md). Without the bulk path (CTRLBUS_DECODER_FAST 0,
+ * the smallest build) push has no inline path at all: each byte is a call of push_slow(), which is
+ * a feed of that byte and a ctrlbus_decoder_next(). ctrlbus_decoder_push_slow() is the same function
  * without the inline paths, with the same contract: call ctrlbus_decoder_push(). */
 ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte, uint32_t now_ms,
                                        ctrlbus_frame_t *frame);
@@ -435,6 +446,7 @@ ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte,
 static inline ctrlbus_rx_t ctrlbus_decoder_push(ctrlbus_decoder_t *decoder, uint8_t byte,
                                                 uint32_t now_ms, ctrlbus_frame_t *frame)
 {
+#if CTRLBUS_DECODER_FAST
     if (decoder == NULL) {
         return CTRLBUS_RX_NONE;
     }
@@ -516,6 +528,7 @@ static inline ctrlbus_rx_t ctrlbus_decoder_push(ctrlbus_decoder_t *decoder, uint
         }
     }
 #endif
+#endif /* CTRLBUS_DECODER_FAST: without the bulk path, every byte goes to push_slow() */
     return ctrlbus_decoder_push_slow(decoder, byte, now_ms, frame);
 }
 
