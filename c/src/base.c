@@ -349,7 +349,7 @@ static uint32_t scale_magnitude(uint32_t x, uint16_t factor, uint32_t divisor)
      * the quotient fits 32 bits. Below divisor <= 2^31 it can be doubled without overflow. */
     uint32_t quotient = low + (middle << 16);
     uint32_t remainder = (middle >> 16) + (quotient < low ? 1u : 0u);
-    for (uint8_t step = 0; step < 32u; step++) {
+    for (unsigned step = 0; step < 32u; step++) {
         remainder = (remainder << 1) | (quotient >> 31);
         quotient <<= 1;
         if (remainder >= divisor) {
@@ -392,7 +392,7 @@ static bool scale_to(int32_t *a, int32_t *b, int32_t peak_a, int32_t peak_b, uin
     }
     /* limit / peak < 1, so each result is smaller than its input. One loop for a and b. */
     int32_t *value = a;
-    for (uint8_t i = 0; i < 2u; i++) {
+    for (unsigned i = 0; i < 2u; i++) {
         *value = with_sign_of(*value, scale_magnitude(magnitude(*value), limit, peak));
         value = b;
     }
