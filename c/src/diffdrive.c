@@ -53,14 +53,15 @@ void ctrlbus_diffdrive_wheel_speeds(int32_t vx_mps_q16, int32_t omega_radps_q16,
     turn_rest = -turn_rest;
     int32_t *wheel = left_mm_s;
     for (int side = 0; side < 2; side++) {
-        /* The speed times 2^17 is whole * 2^17 + rest; |whole| < 2^30 + 2^25. */
+        /* The speed times 2^17 is whole * 2^17 + rest, rest in (-2^17, 2^18); |whole| < 2^30. */
         int32_t whole = forward + turn;
-        uint32_t rest = (uint32_t)(forward_rest + turn_rest + 0x20000); /* 0 < rest < 3 * 2^17 */
-        whole += (int32_t)(rest >> 17) - 1; /* now the speed rounded down, and ... */
-        rest &= 0x1FFFFu;                   /* ... what it dropped, 0 <= rest < 2^17 */
-        /* To nearest: a half rounds up for a positive speed, down (away from zero) for a
-         * negative one. */
-        whole += (int32_t)((rest + 0x10000u - (whole < 0 ? 1u : 0u)) >> 17);
+        /* Rounded half up: floor((speed * 2^17 + 2^16) / 2^17); 2^17 more keeps rest positive. */
+        uint32_t rest = (uint32_t)(forward_rest + turn_rest + 0x10000 + 0x20000);
+        whole += (int32_t)(rest >> 17) - 1;
+        /* A negative half (rounded up to whole exactly, whole <= 0) goes away from zero. */
+        if ((rest & 0x1FFFFu) == 0u && whole <= 0) {
+            whole--;
+        }
         if (wheel != NULL) {
             *wheel = whole;
         }
