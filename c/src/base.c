@@ -339,19 +339,18 @@ static void note_motion(ctrlbus_base_t *base, bool clamped, bool moving)
 
 /* floor(x * factor / divisor), for divisor in 1..2^31 and a result below 2^32: shift-and-subtract
  * long division of the 48-bit product, in 32-bit words. The limits are the only division in the
- * stack, and libgcc's 64-bit division would cost a Cortex-M0+ about 600 bytes. Cost: 48 steps. */
+ * stack, and libgcc's 64-bit division would cost a Cortex-M0+ about 600 bytes. Cost: 32 steps. */
 static uint32_t scale_magnitude(uint32_t x, uint16_t factor, uint32_t divisor)
 {
     uint32_t middle = (x >> 16) * factor; /* the product is middle * 2^16 + low */
     uint32_t low = (x & 0xFFFFu) * factor;
-    uint32_t product_low = low + (middle << 16);
-    uint32_t product_high = (middle >> 16) + (product_low < low ? 1u : 0u); /* bits 32..47 */
-    uint32_t remainder = 0; /* < divisor <= 2^31, so doubling it cannot overflow */
-    uint32_t quotient = 0;
-    for (int step = 0; step < 48; step++) {
-        remainder = (remainder << 1) | ((product_high >> 15) & 1u);
-        product_high = (product_high << 1) | (product_low >> 31);
-        product_low <<= 1;
+    /* The product's low word is shifted out at the top while the quotient's bits come in at the
+     * bottom; the remainder starts as the high word (bits 32..47), which is below divisor since
+     * the quotient fits 32 bits. Below divisor <= 2^31 it can be doubled without overflow. */
+    uint32_t quotient = low + (middle << 16);
+    uint32_t remainder = (middle >> 16) + (quotient < low ? 1u : 0u);
+    for (unsigned step = 0; step < 32u; step++) {
+        remainder = (remainder << 1) | (quotient >> 31);
         quotient <<= 1;
         if (remainder >= divisor) {
             remainder -= divisor;
@@ -371,10 +370,11 @@ static int32_t with_sign_of(int32_t sign, uint32_t value)
     return sign < 0 ? -(int32_t)value : (int32_t)value; /* value <= 2^31 - 1 here */
 }
 
-/* Clamps *value to +-limit (0: no limit). Returns whether it changed. */
+/* Clamps *value to +-limit (0: no limit). Returns whether it changed. A limit above INT32_MAX
+ * never acts: no magnitude exceeds it. */
 static bool clamp_to(int32_t *value, uint32_t limit)
 {
-    if (limit == 0u || limit > INT32_MAX || magnitude(*value) <= limit) {
+    if (limit == 0u || magnitude(*value) <= limit) {
         return false;
     }
     *value = with_sign_of(*value, limit);
@@ -390,9 +390,12 @@ static bool scale_to(int32_t *a, int32_t *b, int32_t peak_a, int32_t peak_b, uin
     if (limit == 0u || peak <= limit) {
         return false;
     }
-    /* limit / peak < 1, so each result is smaller than its input. */
-    *a = with_sign_of(*a, scale_magnitude(magnitude(*a), limit, peak));
-    *b = with_sign_of(*b, scale_magnitude(magnitude(*b), limit, peak));
+    /* limit / peak < 1, so each result is smaller than its input. One loop for a and b. */
+    int32_t *value = a;
+    for (unsigned i = 0; i < 2u; i++) {
+        *value = with_sign_of(*value, scale_magnitude(magnitude(*value), limit, peak));
+        value = b;
+    }
     return true;
 }
 

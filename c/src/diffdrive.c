@@ -11,21 +11,19 @@
 /* Below this half-turn (radians) the chord factor sin(h)/h comes from its series. */
 #define SMALL_HALF_TURN_RAD 1e-4f
 
-static int32_t saturate_i64(int64_t value)
+/* x * factor split at bit 17, rounding down: returns q and sets *rest to r, with
+ * x * factor = q * 2^17 + r and 0 <= r < 2^17. 32-bit arithmetic only (|x * factor| < 2^47):
+ * a 64-bit product would pull in libgcc's multiply (90 bytes on a Cortex-M0). */
+static int32_t split_product(int32_t x, uint16_t factor, int32_t *rest)
 {
-    if (value > INT32_MAX) {
-        return INT32_MAX;
-    }
-    if (value < INT32_MIN) {
-        return INT32_MIN;
-    }
-    return (int32_t)value;
-}
-
-/* value / divisor rounded to nearest, halves away from zero (divisor > 0). */
-static int64_t divide_rounded(int64_t value, int64_t divisor)
-{
-    return value >= 0 ? (value + divisor / 2) / divisor : -((-value + divisor / 2) / divisor);
+    uint32_t x_low = (uint32_t)x & 0xFFFFu;
+    int32_t x_high = (x - (int32_t)x_low) / 65536; /* exact: floor(x / 2^16), in -2^15..2^15-1 */
+    uint32_t low_product = x_low * factor;         /* < 2^32 */
+    /* x * factor = sum * 2^16 + (low_product & 0xFFFF), |sum| < 2^31 - 2^15 */
+    int32_t sum = x_high * (int32_t)factor + (int32_t)(low_product >> 16);
+    uint32_t odd = (uint32_t)sum & 1u;
+    *rest = (int32_t)((odd << 16) | (low_product & 0xFFFFu));
+    return (sum - (int32_t)odd) / 2; /* exact */
 }
 
 static int32_t float_to_q16(float value)
@@ -41,17 +39,35 @@ static int32_t float_to_q16(float value)
 }
 
 void ctrlbus_diffdrive_wheel_speeds(int32_t vx_mps_q16, int32_t omega_radps_q16,
-                                    int32_t wheel_track_mm, int32_t *left_mm_s,
+                                    uint16_t wheel_track_mm, int32_t *left_mm_s,
                                     int32_t *right_mm_s)
 {
-    /* Everything doubled (so W/2 stays exact) and in Q16: |2000 vx| < 2^42, |omega W| <= 2^62. */
-    int64_t forward = (int64_t)vx_mps_q16 * 2000;
-    int64_t turn = (int64_t)omega_radps_q16 * wheel_track_mm;
-    if (left_mm_s != NULL) {
-        *left_mm_s = saturate_i64(divide_rounded(forward - turn, 2 * 65536));
-    }
-    if (right_mm_s != NULL) {
-        *right_mm_s = saturate_i64(divide_rounded(forward + turn, 2 * 65536));
+    /* Everything doubled (so W/2 stays exact) and in Q16, each product split at bit 17:
+     * 2000 vx = forward * 2^17 + forward_rest, omega W = turn * 2^17 + turn_rest. */
+    int32_t forward_rest;
+    int32_t forward = split_product(vx_mps_q16, 2000, &forward_rest);
+    int32_t turn_rest;
+    int32_t turn = split_product(omega_radps_q16, wheel_track_mm, &turn_rest);
+    /* Left first (forward - turn), then right; one loop keeps one copy of the code. */
+    turn = -turn;
+    turn_rest = -turn_rest;
+    int32_t *wheel = left_mm_s;
+    for (int side = 0; side < 2; side++) {
+        /* The speed times 2^17 is whole * 2^17 + rest, rest in (-2^17, 2^18); |whole| < 2^30. */
+        int32_t whole = forward + turn;
+        /* Rounded half up: floor((speed * 2^17 + 2^16) / 2^17); 2^17 more keeps rest positive. */
+        uint32_t rest = (uint32_t)(forward_rest + turn_rest + 0x10000 + 0x20000);
+        whole += (int32_t)(rest >> 17) - 1;
+        /* A negative half (rounded up to whole exactly, whole <= 0) goes away from zero. */
+        if ((rest & 0x1FFFFu) == 0u && whole <= 0) {
+            whole--;
+        }
+        if (wheel != NULL) {
+            *wheel = whole;
+        }
+        turn = -turn;
+        turn_rest = -turn_rest;
+        wheel = right_mm_s;
     }
 }
 

@@ -44,13 +44,119 @@ static void test_wheel_speeds(void)
     ctrlbus_diffdrive_wheel_speeds(0, 65536, 161, &left, &right);
     CHECK_EQ(left, -81);
     CHECK_EQ(right, 81);
-    /* Saturates instead of wrapping. */
-    ctrlbus_diffdrive_wheel_speeds(INT32_MAX, INT32_MAX, INT32_MAX, &left, &right);
-    CHECK_EQ(left, INT32_MIN);
-    CHECK_EQ(right, INT32_MAX);
+    /* The extremes fit: (2000 vx -+ 65535 omega) / 2^17, rounded, is below 2^31. */
+    ctrlbus_diffdrive_wheel_speeds(INT32_MAX, INT32_MAX, UINT16_MAX, &left, &right);
+    CHECK_EQ(left, -1040957440);
+    CHECK_EQ(right, 1106493439); /* 1106493439.48 */
+    ctrlbus_diffdrive_wheel_speeds(INT32_MIN, INT32_MIN, UINT16_MAX, &left, &right);
+    CHECK_EQ(left, 1040957440);
+    CHECK_EQ(right, -1106493440);
+    /* Halves round away from zero: vx 4096 (1/16 m/s) is 62.5 mm/s on both wheels ... */
+    ctrlbus_diffdrive_wheel_speeds(4096, 0, 236, &left, &right);
+    CHECK(left == 63 && right == 63);
+    ctrlbus_diffdrive_wheel_speeds(-4096, 0, 236, &left, &right);
+    CHECK(left == -63 && right == -63);
+    /* ... and omega W / 2 of 0.5 mm/s (omega 2 / 65536, W 32768) is 1 mm/s either way. */
+    ctrlbus_diffdrive_wheel_speeds(0, 2, 32768, &left, &right);
+    CHECK(left == -1 && right == 1);
+    ctrlbus_diffdrive_wheel_speeds(0, 1, 32768, &left, &right); /* 0.25: rounds to 0 */
+    CHECK(left == 0 && right == 0);
     /* NULL outputs are skipped. */
     ctrlbus_diffdrive_wheel_speeds(65536, 0, 236, NULL, &right);
     CHECK_EQ(right, 1000);
+}
+
+/* ---- the wheel speeds against the original 64-bit formula ----------------------------------- */
+
+/* The wheel speeds as first written (64-bit products, then a rounded division), kept as the
+ * reference model: the 32-bit arithmetic must give exactly the same value for every input. */
+static int32_t reference_wheel_speed(int32_t vx_mps_q16, int32_t omega_radps_q16,
+                                     uint16_t wheel_track_mm, int side)
+{
+    int64_t doubled = (int64_t)vx_mps_q16 * 2000 + side * ((int64_t)omega_radps_q16 * wheel_track_mm);
+    int64_t divisor = 2 * 65536;
+    int64_t rounded = doubled >= 0 ? (doubled + divisor / 2) / divisor
+                                   : -((-doubled + divisor / 2) / divisor);
+    CHECK(rounded >= INT32_MIN && rounded <= INT32_MAX); /* never saturates on a u16 track */
+    return (int32_t)rounded;
+}
+
+static uint32_t xorshift32(uint32_t *state)
+{
+    uint32_t x = *state;
+    x ^= x << 13;
+    x ^= x >> 17;
+    x ^= x << 5;
+    *state = x;
+    return x;
+}
+
+static long wheel_speed_mismatches;
+
+static void compare_wheel_speeds(int32_t vx, int32_t omega, uint16_t track)
+{
+    int32_t left = 0;
+    int32_t right = 0;
+    ctrlbus_diffdrive_wheel_speeds(vx, omega, track, &left, &right);
+    int32_t expected_left = reference_wheel_speed(vx, omega, track, -1);
+    int32_t expected_right = reference_wheel_speed(vx, omega, track, 1);
+    if (left != expected_left || right != expected_right) {
+        if (wheel_speed_mismatches++ < 5) {
+            harness_fail(__FILE__, __LINE__,
+                         "wheel speeds (%ld, %ld, %u) = (%ld, %ld), expected (%ld, %ld)",
+                         (long)vx, (long)omega, (unsigned)track, (long)left, (long)right,
+                         (long)expected_left, (long)expected_right);
+        }
+    }
+}
+
+/* Values where the splitting at bits 16 and 17 and the rounding can go wrong. */
+static const int32_t edge_values[] = {
+    0,          1,          -1,         2,           -2,          32767,      -32768,
+    32768,      -32769,     65535,      -65535,      65536,       -65536,     65537,
+    -65537,     98304,      -98304,     131071,      -131071,     131072,     -131072,
+    196608,     -196608,    0x7FFF0000, -0x7FFF0000, 0x7FFFFFFF,  INT32_MIN,  INT32_MIN + 1,
+    0x40000000, -0x40000000, 0x3FFFFFFF, 1000000000, -1000000000, 26214,      13107};
+
+static void test_wheel_speeds_match_reference(void)
+{
+    const size_t edges = sizeof edge_values / sizeof edge_values[0];
+    const uint16_t tracks[] = {0, 1, 2, 3, 160, 161, 236, 32767, 32768, 65534, 65535};
+    const size_t track_count = sizeof tracks / sizeof tracks[0];
+    /* Every pair of edge values on the edge tracks, and on every track for some pairs. */
+    for (size_t i = 0; i < edges; i++) {
+        for (size_t j = 0; j < edges; j++) {
+            for (size_t k = 0; k < track_count; k++) {
+                compare_wheel_speeds(edge_values[i], edge_values[j], tracks[k]);
+            }
+        }
+    }
+    for (uint32_t track = 0; track <= UINT16_MAX; track++) {
+        compare_wheel_speeds(INT32_MAX, INT32_MIN, (uint16_t)track);
+        compare_wheel_speeds(-1, 1, (uint16_t)track);
+        compare_wheel_speeds(33, -65535, (uint16_t)track);
+    }
+    /* Every remainder below 2^17 for vx (the rounding of 2000 vx / 2^17 cycles with period
+     * 2^16) against a few turns, then random inputs: uniform, small, and near the edges. */
+    uint32_t state = 0x2545F491u;
+    for (int32_t vx = -70000; vx <= 70000; vx++) {
+        compare_wheel_speeds(vx, (int32_t)(xorshift32(&state) >> 14) - 131072,
+                             (uint16_t)xorshift32(&state));
+    }
+    for (int n = 0; n < 1000000; n++) {
+        uint32_t kind = xorshift32(&state) % 3u;
+        int32_t vx = (int32_t)xorshift32(&state);
+        int32_t omega = (int32_t)xorshift32(&state);
+        if (kind == 1u) {
+            vx = (int32_t)(xorshift32(&state) % 400001u) - 200000;
+            omega = (int32_t)(xorshift32(&state) % 400001u) - 200000;
+        } else if (kind == 2u) {
+            vx = edge_values[xorshift32(&state) % edges] ^ (int32_t)(xorshift32(&state) & 7u);
+            omega = edge_values[xorshift32(&state) % edges] ^ (int32_t)(xorshift32(&state) & 7u);
+        }
+        compare_wheel_speeds(vx, omega, (uint16_t)xorshift32(&state));
+    }
+    CHECK_EQ(wheel_speed_mismatches, 0);
 }
 
 static void test_straight_and_turns(void)
@@ -153,6 +259,7 @@ static void test_rounding_remainders_do_not_add_up(void)
 int main(void)
 {
     RUN(test_wheel_speeds);
+    RUN(test_wheel_speeds_match_reference);
     RUN(test_straight_and_turns);
     RUN(test_arc);
     RUN(test_saturation_is_reported_later);

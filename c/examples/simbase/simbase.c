@@ -172,7 +172,8 @@ void simbase_set_velocity(simbase_t *sim, int32_t vx_mps_q16, int32_t omega_radp
 {
     int32_t left = 0;
     int32_t right = 0;
-    ctrlbus_diffdrive_wheel_speeds(vx_mps_q16, omega_radps_q16, 2 * sim->config.half_track_mm, &left, &right);
+    uint16_t track = (uint16_t)(2 * sim->config.half_track_mm); /* a u16, as the limits hold it */
+    ctrlbus_diffdrive_wheel_speeds(vx_mps_q16, omega_radps_q16, track, &left, &right);
     simbase_set_wheel_speeds(sim, left, right);
 }
 

@@ -40,12 +40,13 @@ typedef struct {
 } ctrlbus_diffdrive_pose_t;
 
 /* Wheel speeds in mm/s for a body velocity: vx_mps_q16 forward (m/s, Q16), omega_radps_q16 turn
- * rate (rad/s, Q16, positive = anticlockwise), wheel_track_mm the distance between the wheels:
- * left = 1000 vx - omega W / 2, right = 1000 vx + omega W / 2. Each is rounded to the nearest mm/s
- * (halves away from zero) and saturated at the int32 range. Integer arithmetic only.
- * Returns nothing; NULL outputs are skipped. ISR-safe. Cost: O(1) (two 64-bit products). */
+ * rate (rad/s, Q16, positive = anticlockwise), wheel_track_mm the distance between the wheels
+ * (as ctrlbus_base_limits_t holds it): left = 1000 vx - omega W / 2, right = 1000 vx + omega W / 2.
+ * Each is rounded to the nearest mm/s (halves away from zero), exactly, for every input: the
+ * results always fit (|speed| < 2^31). 32-bit integer arithmetic only (no 64-bit multiply).
+ * Returns nothing; NULL outputs are skipped. ISR-safe. Cost: O(1) (four 32-bit products). */
 void ctrlbus_diffdrive_wheel_speeds(int32_t vx_mps_q16, int32_t omega_radps_q16,
-                                    int32_t wheel_track_mm, int32_t *left_mm_s,
+                                    uint16_t wheel_track_mm, int32_t *left_mm_s,
                                     int32_t *right_mm_s);
 
 /* Sets pose to (x_mm, y_mm), heading along +x, no turn recorded. ISR-safe. Cost: O(1). */
