@@ -400,18 +400,6 @@ static bool scale_to(int32_t *a, int32_t *b, int32_t peak_a, int32_t peak_b, uin
 
 /* ---- answering ------------------------------------------------------------------------------ */
 
-/* Keeps a helper with several callers out of line (GCC, clang): -Os alone copies it into each. */
-#if defined(__GNUC__)
-#define SHARED __attribute__((noinline))
-#else
-#define SHARED
-#endif
-
-static ctrlbus_frame_type_t answer_type(const ctrlbus_base_t *base)
-{
-    return base->config->standard_answers ? CTRLBUS_FRAME_AUTO : CTRLBUS_FRAME_LONG;
-}
-
 static uint16_t handler_error(int32_t result)
 {
     return result == CTRLBUS_ERR_UNSUPPORTED ? CTRLBUS_WIRE_ERR_UNSUPPORTED
@@ -447,12 +435,19 @@ static bool sdk2020(const ctrlbus_base_config_t *config)
 #endif
 }
 
-/* SET_BASE_MOTOR: the wheel limit, then the handler. Returns the handler's result. */
-static int32_t set_wheel_speeds(ctrlbus_base_t *base, const ctrlbus_set_base_motor_request_t *motor)
+/* A request's 32-bit argument, read straight from the payload (at any alignment). */
+static int32_t argument_s32(const uint8_t *at)
+{
+    return codec_take_s32(&at);
+}
+
+/* SET_BASE_MOTOR (its arguments: four wheel speeds, the last two ignored): the wheel limit, then
+ * the handler. Returns the handler's result. */
+static int32_t set_wheel_speeds(ctrlbus_base_t *base, const uint8_t *args)
 {
     const ctrlbus_base_config_t *config = base->config;
-    int32_t left = motor->speeds_mm_s[0];
-    int32_t right = motor->speeds_mm_s[1];
+    int32_t left = argument_s32(args);
+    int32_t right = argument_s32(args + 4);
     bool clamped = false;
 #if CTRLBUS_CONFIG_LIMITS
     clamped = scale_to(&left, &right, left, right, config->limits.max_wheel_mm_s);
@@ -461,29 +456,34 @@ static int32_t set_wheel_speeds(ctrlbus_base_t *base, const ctrlbus_set_base_mot
     return config->set_wheel_speeds(config->context, left, right);
 }
 
-/* SET_V_AND_GET_DEADRECKON: the limits, the handler, then the profile's timestamp. Returns the
- * handler's result. */
-static int32_t set_velocity(ctrlbus_base_t *base, ctrlbus_set_v_and_get_deadreckon_request_t v,
+/* SET_V_AND_GET_DEADRECKON (its arguments: vx, vy, omega): the limits, the handler, then the
+ * profile's timestamp. Returns the handler's result. */
+static int32_t set_velocity(ctrlbus_base_t *base, const uint8_t *args,
+                            ctrlbus_set_v_and_get_deadreckon_request_t *v,
                             ctrlbus_set_v_and_get_deadreckon_answer_t *out, uint32_t now_ms)
 {
     const ctrlbus_base_config_t *config = base->config;
+    v->vx_mps_q16 = argument_s32(args);
+    v->vy_mps_q16 = argument_s32(args + 4);
+    v->omega_radps_q16 = argument_s32(args + 8);
     bool clamped = false;
 #if CTRLBUS_CONFIG_LIMITS
     const ctrlbus_base_limits_t *limits = &config->limits;
-    clamped = clamp_to(&v.vx_mps_q16, limits->max_vx_mps_q16);
-    clamped = clamp_to(&v.omega_radps_q16, limits->max_omega_radps_q16) || clamped;
+    clamped = clamp_to(&v->vx_mps_q16, limits->max_vx_mps_q16);
+    clamped = clamp_to(&v->omega_radps_q16, limits->max_omega_radps_q16) || clamped;
     if (limits->wheel_track_mm != 0u) {
         int32_t left = 0;
         int32_t right = 0;
-        ctrlbus_diffdrive_wheel_speeds(v.vx_mps_q16, v.omega_radps_q16, limits->wheel_track_mm,
+        ctrlbus_diffdrive_wheel_speeds(v->vx_mps_q16, v->omega_radps_q16, limits->wheel_track_mm,
                                        &left, &right);
-        clamped =
-            scale_to(&v.vx_mps_q16, &v.omega_radps_q16, left, right, limits->max_wheel_mm_s) ||
-            clamped;
+        clamped = scale_to(&v->vx_mps_q16, &v->omega_radps_q16, left, right,
+                           limits->max_wheel_mm_s) ||
+                  clamped;
     }
 #endif
-    note_motion(base, clamped, v.vx_mps_q16 != 0 || v.vy_mps_q16 != 0 || v.omega_radps_q16 != 0);
-    int32_t result = config->set_velocity(config->context, &v, out);
+    note_motion(base, clamped,
+                v->vx_mps_q16 != 0 || v->vy_mps_q16 != 0 || v->omega_radps_q16 != 0);
+    int32_t result = config->set_velocity(config->context, v, out);
     if (!sdk2020(config)) {
         out->has_timestamp_ms = false;
     } else if (!out->has_timestamp_ms) {
@@ -493,23 +493,23 @@ static int32_t set_velocity(ctrlbus_base_t *base, ctrlbus_set_v_and_get_deadreck
     return result;
 }
 
-/* HEALTH_GET_HEALTH: the levels of the registered errors and their number. */
-static void health_summary(const ctrlbus_base_t *base, ctrlbus_health_get_health_answer_t *out)
+/* HEALTH_GET_HEALTH's two bytes: the levels of the registered errors and their number. */
+static void health_summary(const ctrlbus_base_t *base, uint8_t out[2])
 {
-    out->flags = 0;
-    out->error_count = 0;
+    uint8_t flags = 0;
 #if CTRLBUS_CONFIG_HEALTH
     for (uint8_t i = 0; i < base->health_count; i++) {
-        uint32_t level = health_code_at(base, i) >> 24;
-        out->flags = (uint8_t)(out->flags | (level & HEALTH_LEVEL_BITS));
+        flags = (uint8_t)(flags | ((health_code_at(base, i) >> 24) & HEALTH_LEVEL_BITS));
     }
-    out->error_count = base->health_count;
+    out[1] = base->health_count;
 #else
     (void)base;
+    out[1] = 0;
 #endif
+    out[0] = flags;
 }
 
-/* HEALTH_GET_ERROR: the entry at index. Returns false when there is none. */
+/* HEALTH_GET_ERROR: the entry at index (out zeroed). Returns false when there is none. */
 static bool health_entry(const ctrlbus_base_t *base, uint8_t index,
                          ctrlbus_health_get_error_answer_t *out)
 {
@@ -531,22 +531,10 @@ static bool health_entry(const ctrlbus_base_t *base, uint8_t index,
 #endif
 }
 
-/* POLL_BASE_CMD: the command at the head of the queue, in the profile's form. */
-static void poll_answer(const ctrlbus_base_t *base, ctrlbus_poll_base_cmd_answer_t *out)
-{
-#if CTRLBUS_CONFIG_COMMAND_QUEUE
-    out->has_command = base->command_count != 0u;
-    out->command = out->has_command ? command_at_head(base) : 0u;
-#endif
-    /* Nothing pending: OK 0 (base_ref v4), or FF 00 for the SDK's fixed-size read. */
-    out->payload_size =
-        out->has_command || sdk2020(base->config) ? CTRLBUS_POLL_BASE_CMD_ANSWER_SIZE : 0u;
-}
-
-/* Where a handler's answer struct lives while the handler fills it and it is written. Only one
- * member is in use per request, and only that member is zeroed: this is storage, not a tagged
- * answer (nothing switches on it again). GET_BASE_CONF's answer, the largest layout, is not here:
- * it is written straight from the application's struct (config->base_conf). */
+/* Where the answer to the request being handled lives while a handler fills it and it is
+ * written: on poll's stack, as large as the largest member (GET_BASE_SENSOR_DATA's 64 bytes).
+ * Only the member in use is zeroed. GET_BASE_CONF and the 0x21 blob are written from the
+ * application's own storage instead. */
 typedef union {
     ctrlbus_connect_base_answer_t connect_base;
     ctrlbus_get_base_status_answer_t get_base_status;
@@ -554,50 +542,109 @@ typedef union {
     ctrlbus_get_base_sensor_data_answer_t get_base_sensor_data;
     ctrlbus_get_base_bumper_data_answer_t get_base_bumper_data;
     ctrlbus_get_charger_data_answer_t get_charger_data;
-    ctrlbus_set_v_and_get_deadreckon_answer_t set_v_and_get_deadreckon;
-    ctrlbus_poll_base_cmd_answer_t poll_base_cmd;
-    ctrlbus_health_get_health_answer_t health_get_health;
+    struct {
+        ctrlbus_set_v_and_get_deadreckon_request_t velocity; /* the handler's input */
+        ctrlbus_set_v_and_get_deadreckon_answer_t answer;
+    } motion;
     ctrlbus_health_get_error_answer_t health_get_error;
+    uint8_t bytes[2]; /* written as they are: an ERROR code, POLL_BASE_CMD, HEALTH_GET_HEALTH */
 } answer_storage_t;
 
-/* What a request is answered with when nothing failed: an OK frame of `size` payload bytes
- * (negative: a check refused the handler's struct), its layout (NULL: empty) and its struct. */
+/* GET_BASE_STATUS's two bytes go out as they are in its struct. */
+typedef char status_is_two_bytes[offsetof(ctrlbus_get_base_status_answer_t, power_status) == 1u
+                                     ? 1
+                                     : -1];
+
+/* How a request is answered when nothing failed: `size` payload bytes of `answer` through
+ * `layout` (NULL: its bytes as they are); then the BASE_CMD sub-command whose hook runs. */
 typedef struct {
-    int32_t size;
-    ctrlbus_codec_layout_t layout;
     const void *answer;
+    ctrlbus_codec_layout_t layout;
+    int32_t size; /* negative: a check refused the handler's struct (0x8002) */
+    uint8_t base_cmd;
 } reply_t;
 
-/* answer_request's result besides 0 (the reply is to be written) and an ERROR code. */
-#define ALREADY_ANSWERED 1u
-
-/* The requests whose answer a handler (or the stack) fills into a struct: one switch; each case
- * zeroes and fills its own member of *out, computes its size once (the layout's _size, or the
- * constant) and names its layout. Returns 0 (reply set) or the ERROR code to answer with. */
-static uint16_t answer_filled(ctrlbus_base_t *base, const ctrlbus_request_t *request,
-                              answer_storage_t *out, reply_t *reply, uint32_t now_ms)
+/* Checks a request frame (docs/protocol.md §8.2, in its order) and runs it: one row of the
+ * request table, one case per request. Returns 0 with *reply set, or the ERROR code to answer. */
+static uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t *frame,
+                            answer_storage_t *out, reply_t *reply, uint32_t now_ms)
 {
     const ctrlbus_base_config_t *config = base->config;
     void *context = config->context;
-    int32_t result = CTRLBUS_ERR_UNSUPPORTED; /* the handler's; unsupported while it is missing */
+    const uint8_t *args = frame->payload;
+    size_t len = frame->payload_len;
+    uint8_t kind = CTRLBUS_REQ_BASE_CMD;
+    size_t expected = CTRLBUS_BASE_CMD_REQUEST_SIZE;
+    if (frame->cmd == CTRLBUS_CMD_CTRL_BUS) {
+        /* Any CTRL_BUS frame that passed its checksum shows that the Core is alive (§9.1). */
+        base->last_feed_ms = now_ms;
+        clear_flags(base, FLAG_WATCHDOG_EXPIRED);
+        bool health = len != 0u && args[0] == CTRLBUS_CODE_HEALTH_MGMT;
+        if (len <= (size_t)health) {
+            return CTRLBUS_WIRE_ERR_FORMAT; /* no request code, or HEALTH_MGMT without its sub */
+        }
+        const ctrlbus_codec_request_layout_t *row = ctrlbus_codec_request_layouts;
+        while (CODEC_ROM_BYTE(&row->code) != args[0] ||
+               (health && CODEC_ROM_BYTE(&row->subcommand) != args[1])) {
+            if (++row == ctrlbus_codec_request_layouts + CTRLBUS_CODEC_REQUEST_LAYOUTS) {
+                return health ? CTRLBUS_WIRE_ERR_OPERATION : CTRLBUS_WIRE_ERR_UNSUPPORTED;
+            }
+        }
+        kind = CODEC_ROM_BYTE(&row->kind);
+        expected = CODEC_ROM_BYTE(&row->size);
+        args += health ? 2 : 1;
+    } else if (frame->cmd != CTRLBUS_CMD_BASE_CMD) {
+        return CTRLBUS_WIRE_ERR_UNSUPPORTED; /* answer CMDs and reserved ones too */
+    }
+    if (len != expected) {
+        return CTRLBUS_WIRE_ERR_FORMAT;
+    }
+    /* From here each case checks its argument value, then whether it is implemented; result
+     * stays UNSUPPORTED (0x8000) where either fails. */
+    int32_t result = CTRLBUS_ERR_UNSUPPORTED;
     int32_t size = 0;
     ctrlbus_codec_layout_t layout = NULL;
-    switch (request->kind) {
+    reply->answer = out;
+    switch ((ctrlbus_req_kind_t)kind) {
+    case CTRLBUS_REQ_BASE_CMD:
+        /* The hook runs once the answer is out. */
+        if ((args[0] == CTRLBUS_BASE_CMD_REBOOT && config->reboot != NULL) ||
+            (args[0] == CTRLBUS_BASE_CMD_ENTER_DFU && config->enter_dfu != NULL)) {
+            reply->base_cmd = args[0];
+            result = CTRLBUS_OK;
+        }
+        break;
     case CTRLBUS_REQ_CONNECT_BASE:
-        if (config->connect_info != NULL) {
+        if (codec_connect_version_known(args[0]) && config->connect_info != NULL) {
             memset(&out->connect_base, 0, sizeof out->connect_base);
             result = config->connect_info(context, &out->connect_base);
-            out->connect_base.has_firmware_version_suffix = sdk2020(config); /* the profile's size */
+            out->connect_base.has_firmware_version_suffix = sdk2020(config); /* the profile's */
             size = ctrlbus_connect_base_answer_size(&out->connect_base);
             layout = ctrlbus_codec_connect_base_layout;
         }
         break;
+    case CTRLBUS_REQ_GET_BASE_CONF:
+        if (config->base_conf != NULL) {
+            result = CTRLBUS_OK; /* streamed from the application's struct: no copy */
+            reply->answer = config->base_conf;
+            size = ctrlbus_get_base_conf_answer_size(config->base_conf);
+            layout = ctrlbus_codec_get_base_conf_layout;
+        }
+        break;
+#if CTRLBUS_CONFIG_CONF_ADV
+    case CTRLBUS_REQ_GET_BASE_CONF_ADV:
+        if (config->binary_config != NULL && config->binary_config_size != 0u) {
+            result = CTRLBUS_OK;
+            reply->answer = config->binary_config;
+            size = (int32_t)config->binary_config_size; /* init checked it */
+        }
+        break;
+#endif
     case CTRLBUS_REQ_GET_BASE_STATUS:
         if (config->status != NULL) {
             memset(&out->get_base_status, 0, sizeof out->get_base_status);
             result = config->status(context, &out->get_base_status);
             size = CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE;
-            layout = ctrlbus_codec_get_base_status_layout;
         }
         break;
     case CTRLBUS_REQ_GET_BASE_MOTOR_DATA:
@@ -618,205 +665,166 @@ static uint16_t answer_filled(ctrlbus_base_t *base, const ctrlbus_request_t *req
         break;
     case CTRLBUS_REQ_GET_BASE_BUMPER_DATA:
         if (config->bumper_data != NULL) {
-            memset(&out->get_base_bumper_data, 0, sizeof out->get_base_bumper_data);
-            result = config->bumper_data(context, &out->get_base_bumper_data);
-            if (out->get_base_bumper_data.payload_size == 0u || sdk2020(config)) {
-                /* same value, padded */
-                out->get_base_bumper_data.payload_size = CTRLBUS_GET_BASE_BUMPER_DATA_ANSWER_SIZE;
+            ctrlbus_get_base_bumper_data_answer_t *bumper = &out->get_base_bumper_data;
+            memset(bumper, 0, sizeof *bumper);
+            result = config->bumper_data(context, bumper);
+            if (bumper->payload_size == 0u || sdk2020(config)) {
+                bumper->payload_size = CTRLBUS_GET_BASE_BUMPER_DATA_ANSWER_SIZE; /* padded */
             }
-            size = ctrlbus_get_base_bumper_data_answer_size(&out->get_base_bumper_data);
+            size = ctrlbus_get_base_bumper_data_answer_size(bumper);
             layout = ctrlbus_codec_get_base_bumper_data_layout;
         }
         break;
     case CTRLBUS_REQ_GET_CHARGER_DATA:
-        if (config->charger_data != NULL) {
+        if (codec_charger_type_known(args[0]) && config->charger_data != NULL) {
             memset(&out->get_charger_data, 0, sizeof out->get_charger_data);
             result = config->charger_data(context, &out->get_charger_data);
             size = ctrlbus_get_charger_data_answer_size(&out->get_charger_data);
             layout = ctrlbus_codec_get_charger_data_layout;
         }
         break;
+    case CTRLBUS_REQ_SET_BASE_MOTOR:
+        if (config->set_wheel_speeds != NULL) {
+            result = set_wheel_speeds(base, args);
+        }
+        break;
     case CTRLBUS_REQ_SET_V_AND_GET_DEADRECKON:
         if (config->set_velocity != NULL) {
-            memset(&out->set_v_and_get_deadreckon, 0, sizeof out->set_v_and_get_deadreckon);
-            result = set_velocity(base, request->as.set_v_and_get_deadreckon,
-                                  &out->set_v_and_get_deadreckon, now_ms);
-            size = ctrlbus_set_v_and_get_deadreckon_answer_size(&out->set_v_and_get_deadreckon);
+            memset(&out->motion.answer, 0, sizeof out->motion.answer);
+            result = set_velocity(base, args, &out->motion.velocity, &out->motion.answer, now_ms);
+            reply->answer = &out->motion.answer;
+            size = out->motion.answer.has_timestamp_ms
+                       ? CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_WITH_TIMESTAMP
+                       : CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE;
             layout = ctrlbus_codec_set_v_and_get_deadreckon_layout;
         }
         break;
     case CTRLBUS_REQ_POLL_BASE_CMD:
-        memset(&out->poll_base_cmd, 0, sizeof out->poll_base_cmd);
-        poll_answer(base, &out->poll_base_cmd);
+        /* The oldest pending command; nothing pending: OK 0 (base_ref v4), or FF 00 for the
+         * SDK's fixed-size read. */
         result = CTRLBUS_OK;
-        size = out->poll_base_cmd.payload_size; /* 0 or 2, consistent by construction */
-        layout = ctrlbus_codec_poll_base_cmd_layout;
-        break;
-    case CTRLBUS_REQ_HEALTH_GET_HEALTH:
-        health_summary(base, &out->health_get_health);
-        result = CTRLBUS_OK;
-        size = CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE;
-        layout = ctrlbus_codec_health_get_health_layout;
-        break;
-    case CTRLBUS_REQ_HEALTH_GET_ERROR:
-        memset(&out->health_get_error, 0, sizeof out->health_get_error);
-        if (!health_entry(base, request->as.health_get_error.index, &out->health_get_error)) {
-            return CTRLBUS_WIRE_ERR_OPERATION;
+        out->bytes[0] = CTRLBUS_POLL_NOTHING_PENDING;
+        out->bytes[1] = 0;
+#if CTRLBUS_CONFIG_COMMAND_QUEUE
+        if (base->command_count != 0u) {
+            out->bytes[0] = command_at_head(base);
         }
-        result = CTRLBUS_OK;
-        size = ctrlbus_health_get_error_answer_size(&out->health_get_error);
-        layout = ctrlbus_codec_health_get_error_layout;
-        break;
-    default: break; /* GET_AUXILIARY_ANCHOR has no layout, and features compiled out: 0x8000 */
-    }
-    if (result < 0) {
-        return handler_error(result);
-    }
-    reply->size = size;
-    reply->layout = layout;
-    reply->answer = out;
-    return 0;
-}
-
-/* Runs the application's part of a validated request: one dispatch per request. Returns 0 when
- * *reply is to be written, ALREADY_ANSWERED, or the ERROR code to answer with (nothing written
- * yet then). */
-static uint16_t answer_request(ctrlbus_base_t *base, const ctrlbus_request_t *request,
-                               answer_storage_t *out, reply_t *reply, ctrlbus_sink_t *sink,
-                               ctrlbus_frame_type_t type, uint32_t now_ms)
-{
-    const ctrlbus_base_config_t *config = base->config;
-    void *context = config->context;
-    int32_t result = CTRLBUS_OK;
-    switch (request->kind) {
-    case CTRLBUS_REQ_GET_BASE_CONF:
-        if (config->base_conf == NULL) {
-            return CTRLBUS_WIRE_ERR_UNSUPPORTED;
-        }
-        /* Streamed from the application's struct: no copy on the stack. */
-        reply->size = ctrlbus_get_base_conf_answer_size(config->base_conf);
-        reply->layout = ctrlbus_codec_get_base_conf_layout;
-        reply->answer = config->base_conf;
-        return 0;
-#if CTRLBUS_CONFIG_CONF_ADV
-    case CTRLBUS_REQ_GET_BASE_CONF_ADV:
-        if (config->binary_config == NULL || config->binary_config_size == 0u) {
-            return CTRLBUS_WIRE_ERR_UNSUPPORTED;
-        }
-        /* The layout reads the blob pointer at the struct's start: binary_config itself. */
-        reply->size = (int32_t)config->binary_config_size; /* init checked it */
-        reply->layout = ctrlbus_codec_get_base_conf_adv_layout;
-        reply->answer = &config->binary_config;
-        return 0;
+        if (base->command_count != 0u || sdk2020(config)) {
+#else
+        if (sdk2020(config)) {
 #endif
-    case CTRLBUS_REQ_SET_BASE_MOTOR:
-        result = config->set_wheel_speeds != NULL
-                     ? set_wheel_speeds(base, &request->as.set_base_motor)
-                     : CTRLBUS_ERR_UNSUPPORTED;
+            size = CTRLBUS_POLL_BASE_CMD_ANSWER_SIZE;
+        }
         break;
     case CTRLBUS_REQ_POLL_BASE_ANS_CMD:
+        result = CTRLBUS_OK;
 #if CTRLBUS_CONFIG_COMMAND_QUEUE
         command_taken(base);
 #endif
         break;
     case CTRLBUS_REQ_SEND_EVENT:
-        if (config->on_event != NULL) {
-            result = config->on_event(context, request->as.send_event.event);
+        result = config->on_event != NULL ? config->on_event(context, args[0]) : CTRLBUS_OK;
+        break;
+    case CTRLBUS_REQ_HEALTH_GET_HEALTH:
+        result = CTRLBUS_OK;
+        health_summary(base, out->bytes);
+        size = CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE;
+        break;
+    case CTRLBUS_REQ_HEALTH_GET_ERROR:
+        memset(&out->health_get_error, 0, sizeof out->health_get_error);
+        if (!health_entry(base, args[0], &out->health_get_error)) {
+            return CTRLBUS_WIRE_ERR_OPERATION; /* no such index (or no registry) */
         }
+        result = CTRLBUS_OK;
+        size = CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE;
+        layout = ctrlbus_codec_health_get_error_layout;
         break;
     case CTRLBUS_REQ_HEALTH_CLR_ERROR:
-        if (ctrlbus_base_health_clear(base, request->as.health_clr_error.error_code) <= 0) {
+        if (ctrlbus_base_health_clear(base, (uint32_t)argument_s32(args)) <= 0) {
             return CTRLBUS_WIRE_ERR_OPERATION; /* not registered (or no registry) */
         }
+        result = CTRLBUS_OK;
         break;
-    case CTRLBUS_REQ_BASE_CMD: {
-        /* Its hook runs once the answer is out. */
-        bool reboot = request->as.base_cmd.subcommand == CTRLBUS_BASE_CMD_REBOOT;
-        void (*hook)(void *) = reboot ? config->reboot : config->enter_dfu;
-        if (hook == NULL) {
-            return CTRLBUS_WIRE_ERR_UNSUPPORTED;
-        }
-        (void)ctrlbus_codec_write_ok(sink, 0, NULL, NULL, type);
-        if (reboot) {
-            restart(base, now_ms); /* what a handler that returns (a host base) finds */
-        }
-        hook(context);
-        return ALREADY_ANSWERED;
+    default: break; /* GET_AUXILIARY_ANCHOR, and features compiled out: 0x8000 */
     }
-    default: return answer_filled(base, request, out, reply, now_ms);
+    if (result < 0) {
+        return handler_error(result);
     }
-    return result < 0 ? handler_error(result) : 0u; /* the empty OKs: reply as set */
+    /* A struct the check refuses (text that is not ASCII, a count over 8, ...) is a handler
+     * failure; it is found before any byte goes out. */
+    if (size < 0) {
+        return CTRLBUS_WIRE_ERR_OPERATION;
+    }
+    reply->size = size;
+    reply->layout = layout;
+    return 0;
 }
 
-/* Decodes a request, runs it and writes its one answer (OK, ERROR, or the SYNC/ECHO copy), or
- * writes the ERROR for a decoder event (rx not CTRLBUS_RX_FRAME): the one place answers leave. */
+/* Writes the one answer to a decoder result: the ERROR for an event (nothing for a timeout),
+ * the copy of a SYNC or ECHO request, or the request's OK or ERROR. The one place answers leave;
+ * a write callback's failure cuts the answer short, and there is nothing more to say. */
 static void answer(ctrlbus_base_t *base, ctrlbus_rx_t rx, const ctrlbus_frame_t *frame,
-                   uint32_t now_ms, ctrlbus_sink_t *sink, ctrlbus_frame_type_t type)
+                   ctrlbus_sink_t *sink, uint32_t now_ms)
 {
-    uint16_t error;
-    ctrlbus_request_t request;
+    const ctrlbus_base_config_t *config = base->config;
     answer_storage_t out;
-    reply_t reply = {0, NULL, NULL};
+    reply_t reply = {NULL, NULL, 0, 0};
+    uint8_t cmd = CTRLBUS_CMD_OK;
+    bool is_long = !config->standard_answers; /* OK and ERROR: long unless standard_answers */
+    uint16_t error = 0;
     if (rx != CTRLBUS_RX_FRAME) {
         error = (size_t)rx < sizeof EVENT_ERRORS / sizeof EVENT_ERRORS[0] ? EVENT_ERRORS[rx] : 0u;
-        if (error == CTRLBUS_WIRE_ERR_CHECKSUM && base->config->reference_checksum_code) {
+        if (error == CTRLBUS_WIRE_ERR_CHECKSUM && config->reference_checksum_code) {
             error = CTRLBUS_WIRE_ERR_CHECKSUM_REFERENCE;
         }
         if (error == 0u) {
             return; /* a timeout: nothing to say */
         }
-    } else if (frame->cmd == CTRLBUS_CMD_SYNC || frame->cmd == CTRLBUS_CMD_ECHO) {
-        /* The request copied verbatim, flag and checksum included; not motor traffic. */
-        (void)ctrlbus_frame_write(sink, frame->cmd, frame->payload, frame->payload_len,
-                                  frame->is_long ? CTRLBUS_FRAME_LONG : CTRLBUS_FRAME_STANDARD);
-        return;
+    } else if (frame->cmd <= CTRLBUS_CMD_ECHO) {
+        /* SYNC, ECHO: the request copied verbatim, flag and checksum included. */
+        cmd = frame->cmd;
+        is_long = frame->is_long;
+        reply.answer = frame->payload;
+        reply.size = (int32_t)frame->payload_len;
     } else {
-        if (frame->cmd == CTRLBUS_CMD_CTRL_BUS) {
-            /* Any CTRL_BUS frame that passed its checksum shows that the Core is alive (§9.1). */
-            base->last_feed_ms = now_ms;
-            clear_flags(base, FLAG_WATCHDOG_EXPIRED);
-        }
-        int32_t result =
-            ctrlbus_request_decode(&request, frame->cmd, frame->payload, frame->payload_len);
-        error = result < 0 ? ctrlbus_request_error_code(&request, result)
-                           : answer_request(base, &request, &out, &reply, sink, type, now_ms);
-        if (error == ALREADY_ANSWERED) {
-            return;
-        }
-        /* A struct the check refuses (text that is not ASCII, a count over 8, ...) is a handler
-         * failure; it is found before any byte goes out. */
-        if (error == 0u && reply.size < 0) {
-            error = CTRLBUS_WIRE_ERR_OPERATION;
-        }
+        error = run_request(base, frame, &out, &reply, now_ms);
     }
-    /* A write callback's failure cuts an answer short; there is nothing more to say. */
     if (error != 0u) {
-        (void)ctrlbus_error_answer_write(sink, error, type);
-    } else {
-        (void)ctrlbus_codec_write_ok(sink, reply.size, reply.layout, reply.answer, type);
+        cmd = CTRLBUS_CMD_ERROR;
+        out.bytes[0] = (uint8_t)(error & 0xFFu);
+        out.bytes[1] = (uint8_t)(error >> 8);
+        reply.answer = out.bytes;
+        reply.layout = NULL;
+        reply.size = CTRLBUS_ERROR_ANSWER_SIZE;
+        reply.base_cmd = 0;
+    }
+    size_t size = (size_t)reply.size;
+    ctrlbus_sink_start(sink, cmd, size, is_long || size > CTRLBUS_STANDARD_PAYLOAD_MAX);
+    ctrlbus_codec_put_fields(sink, reply.layout, reply.answer, size);
+    (void)ctrlbus_sink_finish(sink);
+    if (reply.base_cmd == CTRLBUS_BASE_CMD_REBOOT) {
+        restart(base, now_ms); /* what a handler that returns (a host base) finds */
+        config->reboot(config->context);
+    } else if (reply.base_cmd == CTRLBUS_BASE_CMD_ENTER_DFU) {
+        config->enter_dfu(config->context);
     }
 }
 
-/* Answers `first` (a result ctrlbus_decoder_push() returned, with *first_frame; NONE or BUSY for
- * none), then every result the decoder has ready. Returns how many there were. */
-static unsigned drain(ctrlbus_base_t *base, uint32_t now_ms, ctrlbus_rx_t first,
-                      const ctrlbus_frame_t *first_frame)
+/* Answers `rx` (a result push or take returned, with *frame; NONE or BUSY for none), then every
+ * result the decoder has ready (into *frame). Returns how many there were. */
+static unsigned drain(ctrlbus_base_t *base, uint32_t now_ms, ctrlbus_rx_t rx,
+                      ctrlbus_frame_t *frame)
 {
-    const ctrlbus_base_config_t *config = base->config;
     ctrlbus_sink_t sink;
-    (void)ctrlbus_sink_init(&sink, config->write, config->write_context);
+    sink.write = base->config->write; /* the rest is set by each answer's start */
+    sink.context = base->config->write_context;
     unsigned results = 0;
-    ctrlbus_frame_t frame;
-    ctrlbus_frame_type_t type = answer_type(base);
-    if (first != CTRLBUS_RX_NONE && first != CTRLBUS_RX_BUSY) {
-        frame = *first_frame;
-    } else {
-        first = ctrlbus_decoder_next(&base->decoder, &frame);
+    if (rx == CTRLBUS_RX_NONE || rx == CTRLBUS_RX_BUSY) {
+        rx = ctrlbus_decoder_next(&base->decoder, frame);
     }
-    for (ctrlbus_rx_t rx = first; rx != CTRLBUS_RX_NONE;
-         rx = ctrlbus_decoder_next(&base->decoder, &frame)) {
+    for (; rx != CTRLBUS_RX_NONE; rx = ctrlbus_decoder_next(&base->decoder, frame)) {
         results++;
-        answer(base, rx, &frame, now_ms, &sink, type);
+        answer(base, rx, frame, &sink, now_ms);
     }
     return results;
 }
@@ -845,13 +853,31 @@ void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
     uint16_t head = base->rx_head;
     CTRLBUS_RING_FENCE(); /* the bytes up to head are read only after head is */
     uint16_t tail = base->rx_tail;
+    ctrlbus_frame_t frame;
+#if CTRLBUS_DECODER_FAST == 0
+    /* Without the bulk path, one push per byte: it copies the byte into the decoder's buffer, so
+     * its slot is released at once (room for what arrives while the answers are written). */
+    while (tail != head) {
+        ctrlbus_rx_t rx = ctrlbus_decoder_push(&base->decoder, config->rx_ring[tail], now_ms, &frame);
+        if (rx != CTRLBUS_RX_BUSY) { /* BUSY (results were waiting): pushed again after them */
+            tail = (uint16_t)(tail + 1u == config->rx_ring_size ? 0u : tail + 1u);
+            CTRLBUS_RING_FENCE(); /* done with the byte before feed may reuse its slot */
+            base->rx_tail = tail;
+        }
+        if (rx != CTRLBUS_RX_NONE) {
+            (void)drain(base, now_ms, rx, &frame);
+        }
+        if (dropped_after_reboot(base)) {
+            return;
+        }
+    }
+#else
     while (tail != head) {
         uint16_t end = head > tail ? head : config->rx_ring_size;
         const uint8_t *bytes = config->rx_ring + tail;
         size_t run = (size_t)(end - tail);
         size_t used = 0;
         ctrlbus_rx_t rx = CTRLBUS_RX_NONE;
-        ctrlbus_frame_t frame;
         if (run < PUSH_BELOW) {
             /* A few bytes: one push each (its inline path), until one completes a result. */
             while (used < run &&
@@ -886,8 +912,9 @@ void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
             break; /* cannot happen with a valid decoder; never spin */
         }
     }
+#endif
     ctrlbus_decoder_tick(&base->decoder, now_ms);
-    (void)drain(base, now_ms, CTRLBUS_RX_NONE, NULL);
+    (void)drain(base, now_ms, CTRLBUS_RX_NONE, &frame);
     (void)dropped_after_reboot(base);
 }
 
