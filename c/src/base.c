@@ -400,12 +400,6 @@ static bool scale_to(int32_t *a, int32_t *b, int32_t peak_a, int32_t peak_b, uin
 
 /* ---- answering ------------------------------------------------------------------------------ */
 
-static uint16_t handler_error(int32_t result)
-{
-    return result == CTRLBUS_ERR_UNSUPPORTED ? CTRLBUS_WIRE_ERR_UNSUPPORTED
-                                             : CTRLBUS_WIRE_ERR_OPERATION;
-}
-
 /* What a rebooted base forgets (docs/base-framework.md behaviour 12): the input not yet
  * answered, the command queue, the health list, the watchdog's state and the uptime origin. */
 static void restart(ctrlbus_base_t *base, uint32_t now_ms)
@@ -456,13 +450,20 @@ static int32_t set_wheel_speeds(ctrlbus_base_t *base, const uint8_t *args)
     return config->set_wheel_speeds(config->context, left, right);
 }
 
+/* SET_V_AND_GET_DEADRECKON's part of the answer storage: the handler's input and its answer. */
+typedef struct {
+    ctrlbus_set_v_and_get_deadreckon_answer_t answer; /* first: zeroed (ZEROED below) */
+    ctrlbus_set_v_and_get_deadreckon_request_t velocity;
+} motion_storage_t;
+
 /* SET_V_AND_GET_DEADRECKON (its arguments: vx, vy, omega): the limits, the handler, then the
  * profile's timestamp. Returns the handler's result. */
-static int32_t set_velocity(ctrlbus_base_t *base, const uint8_t *args,
-                            ctrlbus_set_v_and_get_deadreckon_request_t *v,
-                            ctrlbus_set_v_and_get_deadreckon_answer_t *out, uint32_t now_ms)
+static int32_t set_velocity(ctrlbus_base_t *base, const uint8_t *args, motion_storage_t *motion,
+                            uint32_t now_ms)
 {
     const ctrlbus_base_config_t *config = base->config;
+    ctrlbus_set_v_and_get_deadreckon_request_t *v = &motion->velocity;
+    ctrlbus_set_v_and_get_deadreckon_answer_t *out = &motion->answer;
     v->vx_mps_q16 = argument_s32(args);
     v->vy_mps_q16 = argument_s32(args + 4);
     v->omega_radps_q16 = argument_s32(args + 8);
@@ -542,10 +543,7 @@ typedef union {
     ctrlbus_get_base_sensor_data_answer_t get_base_sensor_data;
     ctrlbus_get_base_bumper_data_answer_t get_base_bumper_data;
     ctrlbus_get_charger_data_answer_t get_charger_data;
-    struct {
-        ctrlbus_set_v_and_get_deadreckon_request_t velocity; /* the handler's input */
-        ctrlbus_set_v_and_get_deadreckon_answer_t answer;
-    } motion;
+    motion_storage_t motion;
     ctrlbus_health_get_error_answer_t health_get_error;
     uint8_t bytes[2]; /* written as they are: an ERROR code, POLL_BASE_CMD, HEALTH_GET_HEALTH */
 } answer_storage_t;
@@ -555,22 +553,54 @@ typedef char status_is_two_bytes[offsetof(ctrlbus_get_base_status_answer_t, powe
                                      ? 1
                                      : -1];
 
-/* How a request is answered when nothing failed: `size` payload bytes of `answer` through
- * `layout` (NULL: its bytes as they are); then the BASE_CMD sub-command whose hook runs. */
+/* How many bytes at the start of the storage each request's handler fills (zeroed before it
+ * runs), by request kind from CONNECT_BASE on; 0: none. */
+#define ZEROED_FIRST CTRLBUS_REQ_CONNECT_BASE
+static const uint8_t ZEROED[CTRLBUS_REQ_HEALTH_CLR_ERROR + 1 - ZEROED_FIRST] CODEC_ROM = {
+    [CTRLBUS_REQ_CONNECT_BASE - ZEROED_FIRST] = sizeof(ctrlbus_connect_base_answer_t),
+    [CTRLBUS_REQ_GET_BASE_STATUS - ZEROED_FIRST] = sizeof(ctrlbus_get_base_status_answer_t),
+    [CTRLBUS_REQ_GET_BASE_MOTOR_DATA - ZEROED_FIRST] = sizeof(ctrlbus_get_base_motor_data_answer_t),
+    [CTRLBUS_REQ_GET_BASE_SENSOR_DATA - ZEROED_FIRST] =
+        sizeof(ctrlbus_get_base_sensor_data_answer_t),
+    [CTRLBUS_REQ_GET_BASE_BUMPER_DATA - ZEROED_FIRST] =
+        sizeof(ctrlbus_get_base_bumper_data_answer_t),
+    [CTRLBUS_REQ_GET_CHARGER_DATA - ZEROED_FIRST] = sizeof(ctrlbus_get_charger_data_answer_t),
+    [CTRLBUS_REQ_SET_V_AND_GET_DEADRECKON - ZEROED_FIRST] =
+        sizeof(ctrlbus_set_v_and_get_deadreckon_answer_t),
+    [CTRLBUS_REQ_HEALTH_GET_ERROR - ZEROED_FIRST] = sizeof(ctrlbus_health_get_error_answer_t),
+};
+
+/* Keeps a function out of line (GCC, clang): answer()'s storage is then on the stack only while
+ * an answer is written, not while the decoder works. */
+#if defined(__GNUC__)
+#define NOINLINE __attribute__((noinline))
+#else
+#define NOINLINE
+#endif
+
+/* The answer being written: its storage, and when nothing failed, `size` payload bytes of
+ * `source` (usually the storage) through `layout` (NULL: its bytes as they are); then the
+ * BASE_CMD whose hook runs. */
 typedef struct {
-    const void *answer;
+    answer_storage_t out;
+    const void *source;
     ctrlbus_codec_layout_t layout;
     int32_t size; /* negative: a check refused the handler's struct (0x8002) */
     uint8_t base_cmd;
 } reply_t;
 
-/* Checks a request frame (docs/protocol.md §8.2, in its order) and runs it: one row of the
- * request table, one case per request. Returns 0 with *reply set, or the ERROR code to answer. */
-static uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t *frame,
-                            answer_storage_t *out, reply_t *reply, uint32_t now_ms)
+/* Checks a request frame in the order of docs/protocol.md §8.2 (its row of the request table
+ * gives the expected length), then runs it: one case per request, each checking its argument
+ * value, then whether it is implemented. Returns 0 with *reply set, or the ERROR code to answer.
+ * Out of line: its frame is on the stack while it runs, not while the answer is written. */
+static NOINLINE uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t *frame,
+                                     reply_t *reply, uint32_t now_ms)
 {
+    answer_storage_t *out = &reply->out;
     const ctrlbus_base_config_t *config = base->config;
-    void *context = config->context;
+    int32_t result = CTRLBUS_ERR_UNSUPPORTED; /* stays so where a check or the handler lacks */
+    int32_t size = 0;
+    ctrlbus_codec_layout_t layout = NULL;
     const uint8_t *args = frame->payload;
     size_t len = frame->payload_len;
     uint8_t kind = CTRLBUS_REQ_BASE_CMD;
@@ -599,15 +629,11 @@ static uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t *frame,
     if (len != expected) {
         return CTRLBUS_WIRE_ERR_FORMAT;
     }
-    /* From here each case checks its argument value, then whether it is implemented; result
-     * stays UNSUPPORTED (0x8000) where either fails. */
-    int32_t result = CTRLBUS_ERR_UNSUPPORTED;
-    int32_t size = 0;
-    ctrlbus_codec_layout_t layout = NULL;
-    reply->answer = out;
+    if (kind >= ZEROED_FIRST) {
+        memset(out, 0, CODEC_ROM_BYTE(&ZEROED[kind - ZEROED_FIRST]));
+    }
     switch ((ctrlbus_req_kind_t)kind) {
     case CTRLBUS_REQ_BASE_CMD:
-        /* The hook runs once the answer is out. */
         if ((args[0] == CTRLBUS_BASE_CMD_REBOOT && config->reboot != NULL) ||
             (args[0] == CTRLBUS_BASE_CMD_ENTER_DFU && config->enter_dfu != NULL)) {
             reply->base_cmd = args[0];
@@ -616,8 +642,7 @@ static uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t *frame,
         break;
     case CTRLBUS_REQ_CONNECT_BASE:
         if (codec_connect_version_known(args[0]) && config->connect_info != NULL) {
-            memset(&out->connect_base, 0, sizeof out->connect_base);
-            result = config->connect_info(context, &out->connect_base);
+            result = config->connect_info(config->context, &out->connect_base);
             out->connect_base.has_firmware_version_suffix = sdk2020(config); /* the profile's */
             size = ctrlbus_connect_base_answer_size(&out->connect_base);
             layout = ctrlbus_codec_connect_base_layout;
@@ -626,7 +651,7 @@ static uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t *frame,
     case CTRLBUS_REQ_GET_BASE_CONF:
         if (config->base_conf != NULL) {
             result = CTRLBUS_OK; /* streamed from the application's struct: no copy */
-            reply->answer = config->base_conf;
+            reply->source = config->base_conf;
             size = ctrlbus_get_base_conf_answer_size(config->base_conf);
             layout = ctrlbus_codec_get_base_conf_layout;
         }
@@ -635,50 +660,44 @@ static uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t *frame,
     case CTRLBUS_REQ_GET_BASE_CONF_ADV:
         if (config->binary_config != NULL && config->binary_config_size != 0u) {
             result = CTRLBUS_OK;
-            reply->answer = config->binary_config;
+            reply->source = config->binary_config;
             size = (int32_t)config->binary_config_size; /* init checked it */
         }
         break;
 #endif
     case CTRLBUS_REQ_GET_BASE_STATUS:
         if (config->status != NULL) {
-            memset(&out->get_base_status, 0, sizeof out->get_base_status);
-            result = config->status(context, &out->get_base_status);
+            result = config->status(config->context, &out->get_base_status);
             size = CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE;
         }
         break;
     case CTRLBUS_REQ_GET_BASE_MOTOR_DATA:
         if (config->motor_data != NULL) {
-            memset(&out->get_base_motor_data, 0, sizeof out->get_base_motor_data);
-            result = config->motor_data(context, &out->get_base_motor_data);
+            result = config->motor_data(config->context, &out->get_base_motor_data);
             size = CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE;
             layout = ctrlbus_codec_get_base_motor_data_layout;
         }
         break;
     case CTRLBUS_REQ_GET_BASE_SENSOR_DATA:
         if (config->sensor_data != NULL) {
-            memset(&out->get_base_sensor_data, 0, sizeof out->get_base_sensor_data);
-            result = config->sensor_data(context, &out->get_base_sensor_data);
+            result = config->sensor_data(config->context, &out->get_base_sensor_data);
             size = CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE;
             layout = ctrlbus_codec_get_base_sensor_data_layout;
         }
         break;
     case CTRLBUS_REQ_GET_BASE_BUMPER_DATA:
         if (config->bumper_data != NULL) {
-            ctrlbus_get_base_bumper_data_answer_t *bumper = &out->get_base_bumper_data;
-            memset(bumper, 0, sizeof *bumper);
-            result = config->bumper_data(context, bumper);
-            if (bumper->payload_size == 0u || sdk2020(config)) {
-                bumper->payload_size = CTRLBUS_GET_BASE_BUMPER_DATA_ANSWER_SIZE; /* padded */
+            result = config->bumper_data(config->context, &out->get_base_bumper_data);
+            if (out->get_base_bumper_data.payload_size == 0u || sdk2020(config)) {
+                out->get_base_bumper_data.payload_size = CTRLBUS_GET_BASE_BUMPER_DATA_ANSWER_SIZE;
             }
-            size = ctrlbus_get_base_bumper_data_answer_size(bumper);
+            size = ctrlbus_get_base_bumper_data_answer_size(&out->get_base_bumper_data);
             layout = ctrlbus_codec_get_base_bumper_data_layout;
         }
         break;
     case CTRLBUS_REQ_GET_CHARGER_DATA:
         if (codec_charger_type_known(args[0]) && config->charger_data != NULL) {
-            memset(&out->get_charger_data, 0, sizeof out->get_charger_data);
-            result = config->charger_data(context, &out->get_charger_data);
+            result = config->charger_data(config->context, &out->get_charger_data);
             size = ctrlbus_get_charger_data_answer_size(&out->get_charger_data);
             layout = ctrlbus_codec_get_charger_data_layout;
         }
@@ -690,9 +709,7 @@ static uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t *frame,
         break;
     case CTRLBUS_REQ_SET_V_AND_GET_DEADRECKON:
         if (config->set_velocity != NULL) {
-            memset(&out->motion.answer, 0, sizeof out->motion.answer);
-            result = set_velocity(base, args, &out->motion.velocity, &out->motion.answer, now_ms);
-            reply->answer = &out->motion.answer;
+            result = set_velocity(base, args, &out->motion, now_ms);
             size = out->motion.answer.has_timestamp_ms
                        ? CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_WITH_TIMESTAMP
                        : CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE;
@@ -708,11 +725,10 @@ static uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t *frame,
 #if CTRLBUS_CONFIG_COMMAND_QUEUE
         if (base->command_count != 0u) {
             out->bytes[0] = command_at_head(base);
+            size = CTRLBUS_POLL_BASE_CMD_ANSWER_SIZE;
         }
-        if (base->command_count != 0u || sdk2020(config)) {
-#else
-        if (sdk2020(config)) {
 #endif
+        if (sdk2020(config)) {
             size = CTRLBUS_POLL_BASE_CMD_ANSWER_SIZE;
         }
         break;
@@ -723,7 +739,7 @@ static uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t *frame,
 #endif
         break;
     case CTRLBUS_REQ_SEND_EVENT:
-        result = config->on_event != NULL ? config->on_event(context, args[0]) : CTRLBUS_OK;
+        result = config->on_event != NULL ? config->on_event(config->context, args[0]) : CTRLBUS_OK;
         break;
     case CTRLBUS_REQ_HEALTH_GET_HEALTH:
         result = CTRLBUS_OK;
@@ -731,24 +747,23 @@ static uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t *frame,
         size = CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE;
         break;
     case CTRLBUS_REQ_HEALTH_GET_ERROR:
-        memset(&out->health_get_error, 0, sizeof out->health_get_error);
-        if (!health_entry(base, args[0], &out->health_get_error)) {
-            return CTRLBUS_WIRE_ERR_OPERATION; /* no such index (or no registry) */
-        }
-        result = CTRLBUS_OK;
+        /* No such index (or no registry): 0x8002. */
+        result = health_entry(base, args[0], &out->health_get_error) ? CTRLBUS_OK
+                                                                    : CTRLBUS_ERR_ARGUMENT;
         size = CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE;
         layout = ctrlbus_codec_health_get_error_layout;
         break;
     case CTRLBUS_REQ_HEALTH_CLR_ERROR:
-        if (ctrlbus_base_health_clear(base, (uint32_t)argument_s32(args)) <= 0) {
-            return CTRLBUS_WIRE_ERR_OPERATION; /* not registered (or no registry) */
-        }
-        result = CTRLBUS_OK;
+        /* Not registered (or no registry): 0x8002. */
+        result = ctrlbus_base_health_clear(base, (uint32_t)argument_s32(args)) > 0
+                     ? CTRLBUS_OK
+                     : CTRLBUS_ERR_ARGUMENT;
         break;
     default: break; /* GET_AUXILIARY_ANCHOR, and features compiled out: 0x8000 */
     }
     if (result < 0) {
-        return handler_error(result);
+        return result == CTRLBUS_ERR_UNSUPPORTED ? CTRLBUS_WIRE_ERR_UNSUPPORTED
+                                                 : CTRLBUS_WIRE_ERR_OPERATION;
     }
     /* A struct the check refuses (text that is not ASCII, a count over 8, ...) is a handler
      * failure; it is found before any byte goes out. */
@@ -761,14 +776,17 @@ static uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t *frame,
 }
 
 /* Writes the one answer to a decoder result: the ERROR for an event (nothing for a timeout),
- * the copy of a SYNC or ECHO request, or the request's OK or ERROR. The one place answers leave;
+ * the copy of a SYNC or ECHO request, or a request's OK or ERROR. The one place answers leave;
  * a write callback's failure cuts the answer short, and there is nothing more to say. */
-static void answer(ctrlbus_base_t *base, ctrlbus_rx_t rx, const ctrlbus_frame_t *frame,
-                   ctrlbus_sink_t *sink, uint32_t now_ms)
+static NOINLINE void answer(ctrlbus_base_t *base, ctrlbus_rx_t rx, const ctrlbus_frame_t *frame,
+                            uint32_t now_ms)
 {
     const ctrlbus_base_config_t *config = base->config;
-    answer_storage_t out;
-    reply_t reply = {NULL, NULL, 0, 0};
+    reply_t reply;
+    reply.source = &reply.out;
+    reply.layout = NULL;
+    reply.size = 0;
+    reply.base_cmd = 0;
     uint8_t cmd = CTRLBUS_CMD_OK;
     bool is_long = !config->standard_answers; /* OK and ERROR: long unless standard_answers */
     uint16_t error = 0;
@@ -784,24 +802,27 @@ static void answer(ctrlbus_base_t *base, ctrlbus_rx_t rx, const ctrlbus_frame_t 
         /* SYNC, ECHO: the request copied verbatim, flag and checksum included. */
         cmd = frame->cmd;
         is_long = frame->is_long;
-        reply.answer = frame->payload;
+        reply.source = frame->payload;
         reply.size = (int32_t)frame->payload_len;
     } else {
-        error = run_request(base, frame, &out, &reply, now_ms);
+        error = run_request(base, frame, &reply, now_ms);
     }
     if (error != 0u) {
         cmd = CTRLBUS_CMD_ERROR;
-        out.bytes[0] = (uint8_t)(error & 0xFFu);
-        out.bytes[1] = (uint8_t)(error >> 8);
-        reply.answer = out.bytes;
+        reply.out.bytes[0] = (uint8_t)(error & 0xFFu);
+        reply.out.bytes[1] = (uint8_t)(error >> 8);
+        reply.source = reply.out.bytes;
         reply.layout = NULL;
         reply.size = CTRLBUS_ERROR_ANSWER_SIZE;
         reply.base_cmd = 0;
     }
+    ctrlbus_sink_t sink;
+    sink.write = config->write; /* the rest is set by start */
+    sink.context = config->write_context;
     size_t size = (size_t)reply.size;
-    ctrlbus_sink_start(sink, cmd, size, is_long || size > CTRLBUS_STANDARD_PAYLOAD_MAX);
-    ctrlbus_codec_put_fields(sink, reply.layout, reply.answer, size);
-    (void)ctrlbus_sink_finish(sink);
+    ctrlbus_sink_start(&sink, cmd, size, is_long || size > CTRLBUS_STANDARD_PAYLOAD_MAX);
+    ctrlbus_codec_put_fields(&sink, reply.layout, reply.source, size);
+    (void)ctrlbus_sink_finish(&sink);
     if (reply.base_cmd == CTRLBUS_BASE_CMD_REBOOT) {
         restart(base, now_ms); /* what a handler that returns (a host base) finds */
         config->reboot(config->context);
@@ -812,19 +833,16 @@ static void answer(ctrlbus_base_t *base, ctrlbus_rx_t rx, const ctrlbus_frame_t 
 
 /* Answers `rx` (a result push or take returned, with *frame; NONE or BUSY for none), then every
  * result the decoder has ready (into *frame). Returns how many there were. */
-static unsigned drain(ctrlbus_base_t *base, uint32_t now_ms, ctrlbus_rx_t rx,
+static inline unsigned drain(ctrlbus_base_t *base, uint32_t now_ms, ctrlbus_rx_t rx,
                       ctrlbus_frame_t *frame)
 {
-    ctrlbus_sink_t sink;
-    sink.write = base->config->write; /* the rest is set by each answer's start */
-    sink.context = base->config->write_context;
     unsigned results = 0;
     if (rx == CTRLBUS_RX_NONE || rx == CTRLBUS_RX_BUSY) {
         rx = ctrlbus_decoder_next(&base->decoder, frame);
     }
     for (; rx != CTRLBUS_RX_NONE; rx = ctrlbus_decoder_next(&base->decoder, frame)) {
         results++;
-        answer(base, rx, frame, &sink, now_ms);
+        answer(base, rx, frame, now_ms);
     }
     return results;
 }
@@ -842,6 +860,36 @@ static bool dropped_after_reboot(ctrlbus_base_t *base)
     return true;
 }
 
+#if CTRLBUS_DECODER_FAST
+/* Decodes the *run ring bytes from rx_tail on up to the first result, which it returns (NONE:
+ * none), and sets *run to the bytes it took: a run shorter than PUSH_BELOW one push() per byte
+ * (its inline path), a longer one through take(), which hands a whole frame out in place, its
+ * payload still in the ring. Out of line: its locals are not on the stack while the answers are
+ * written. */
+static NOINLINE ctrlbus_rx_t decode_run(ctrlbus_base_t *base, size_t *run, uint32_t now_ms,
+                                        ctrlbus_frame_t *frame)
+{
+    const uint8_t *bytes = base->config->rx_ring + base->rx_tail;
+    size_t left = *run;
+    ctrlbus_rx_t rx = CTRLBUS_RX_NONE;
+    if (left < PUSH_BELOW) {
+        size_t taken = 0;
+        while (taken < left && (rx = ctrlbus_decoder_push(&base->decoder, bytes[taken], now_ms,
+                                                          frame)) == CTRLBUS_RX_NONE) {
+            taken++;
+        }
+        if (rx != CTRLBUS_RX_NONE && rx != CTRLBUS_RX_BUSY) {
+            taken++; /* the byte that completed the result was taken too */
+        }
+        *run = taken;
+    } else {
+        rx = ctrlbus_decoder_take(&base->decoder, &bytes, &left, now_ms, frame);
+        *run -= left;
+    }
+    return rx;
+}
+#endif
+
 void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
 {
     if (base == NULL || base->config == NULL) {
@@ -854,68 +902,43 @@ void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
     CTRLBUS_RING_FENCE(); /* the bytes up to head are read only after head is */
     uint16_t tail = base->rx_tail;
     ctrlbus_frame_t frame;
-#if CTRLBUS_DECODER_FAST == 0
-    /* Without the bulk path, one push per byte: it copies the byte into the decoder's buffer, so
-     * its slot is released at once (room for what arrives while the answers are written). */
-    while (tail != head) {
-        ctrlbus_rx_t rx = ctrlbus_decoder_push(&base->decoder, config->rx_ring[tail], now_ms, &frame);
-        if (rx != CTRLBUS_RX_BUSY) { /* BUSY (results were waiting): pushed again after them */
-            tail = (uint16_t)(tail + 1u == config->rx_ring_size ? 0u : tail + 1u);
-            CTRLBUS_RING_FENCE(); /* done with the byte before feed may reuse its slot */
-            base->rx_tail = tail;
-        }
-        if (rx != CTRLBUS_RX_NONE) {
-            (void)drain(base, now_ms, rx, &frame);
-        }
-        if (dropped_after_reboot(base)) {
-            return;
-        }
-    }
-#else
-    while (tail != head) {
-        uint16_t end = head > tail ? head : config->rx_ring_size;
-        const uint8_t *bytes = config->rx_ring + tail;
-        size_t run = (size_t)(end - tail);
+    bool ticked = false;
+    do {
+        ctrlbus_rx_t rx;
         size_t used = 0;
-        ctrlbus_rx_t rx = CTRLBUS_RX_NONE;
-        if (run < PUSH_BELOW) {
-            /* A few bytes: one push each (its inline path), until one completes a result. */
-            while (used < run &&
-                   (rx = ctrlbus_decoder_push(&base->decoder, bytes[used], now_ms, &frame)) ==
-                       CTRLBUS_RX_NONE) {
-                used++;
-            }
-            if (rx != CTRLBUS_RX_NONE && rx != CTRLBUS_RX_BUSY) {
-                used++; /* the byte that completed the result was taken too */
-            }
+        if (tail == head) {
+            /* The ring is done: the inter-byte timeout, then whatever it leaves to answer. */
+            ctrlbus_decoder_tick(&base->decoder, now_ms);
+            ticked = true;
+            rx = CTRLBUS_RX_BUSY; /* drain: the decoder's own results */
         } else {
-            /* More: take() up to the first result; a whole frame in the run is handed out in
-             * place, its payload still in the ring. */
-            const uint8_t *at = bytes;
-            size_t left = run;
-            rx = ctrlbus_decoder_take(&base->decoder, &at, &left, now_ms, &frame);
-            used = run - left;
+#if CTRLBUS_DECODER_FAST == 0
+            /* Without the bulk path, one push per byte (BUSY: results were waiting; the byte is
+             * pushed again after them). */
+            rx = ctrlbus_decoder_push(&base->decoder, config->rx_ring[tail], now_ms, &frame);
+            used = rx != CTRLBUS_RX_BUSY;
+#else
+            used = (size_t)((head > tail ? head : config->rx_ring_size) - tail);
+            rx = decode_run(base, &used, now_ms, &frame); /* from tail, which is rx_tail */
+#endif
         }
-        /* NONE from push or take means nothing waits. The result is answered before its bytes'
-         * slots are released, since a frame taken in place still lies in them. */
+        /* A result is answered before its bytes' slots are released, since a frame taken in
+         * place still lies in them. */
         unsigned results = rx == CTRLBUS_RX_NONE ? 0u : drain(base, now_ms, rx, &frame);
-        tail = (uint16_t)(tail + used);
-        if (tail == config->rx_ring_size) {
-            tail = 0;
+        if (used != 0u) {
+            tail = (uint16_t)(tail + used);
+            if (tail == config->rx_ring_size) {
+                tail = 0;
+            }
+            CTRLBUS_RING_FENCE(); /* done with those bytes before feed may reuse their slots */
+            base->rx_tail = tail;
+        } else if (results == 0u) {
+            head = tail; /* cannot happen with a valid decoder; never spin */
         }
-        CTRLBUS_RING_FENCE(); /* done with those bytes before feed may reuse their slots */
-        base->rx_tail = tail;
         if (dropped_after_reboot(base)) {
             return;
         }
-        if (used == 0u && results == 0u) {
-            break; /* cannot happen with a valid decoder; never spin */
-        }
-    }
-#endif
-    ctrlbus_decoder_tick(&base->decoder, now_ms);
-    (void)drain(base, now_ms, CTRLBUS_RX_NONE, &frame);
-    (void)dropped_after_reboot(base);
+    } while (!ticked);
 }
 
 /* Whether config asks for a feature that this build compiled out (ctrlbus/ctrlbus_config.h). */

@@ -105,11 +105,11 @@ void ctrlbus_sink_start(ctrlbus_sink_t *sink, uint8_t cmd, size_t payload_len, b
 void ctrlbus_sink_emit(ctrlbus_sink_t *sink, const uint8_t *data, size_t len)
 {
     if (len > sink->remaining) { /* remaining is 0 outside a frame */
-        ctrlbus_sink_fail(sink, CTRLBUS_ERR_LENGTH);
-        return;
+        ctrlbus_sink_fail(sink, CTRLBUS_ERR_LENGTH); /* so sink_out writes nothing */
+    } else {
+        sink->remaining -= (uint32_t)len;
     }
-    sink->remaining -= (uint32_t)len;
-    sink_out(sink, data, len);
+    sink_out(sink, data, len); /* a tail call: no frame of ours while write runs */
 }
 
 int32_t ctrlbus_sink_finish(ctrlbus_sink_t *sink)

@@ -222,16 +222,20 @@ void ctrlbus_codec_put_fields(ctrlbus_sink_t *sink, ctrlbus_codec_layout_t layou
             ctrlbus_sink_emit(sink, *(const uint8_t *const *)(const void *)at, size);
             return; /* the rest of the payload */
         }
-        size_t width = kind == FIELD_TEXT ? 1u : kind;
 #if CODEC_HOST_LITTLE_ENDIAN
         if (kind != FIELD_TEXT) {
             /* The run of integers is already in wire order in memory: one call for all. */
-            size_t run = count * width < size ? count * width : size;
+            size_t run = count * kind < size ? count * kind : size;
             ctrlbus_sink_emit(sink, at, run);
             size -= run;
             continue;
         }
-#endif
+        for (uint8_t byte = 1; count > 0u && size > 0u; count--, size--, at++) {
+            byte = byte != 0u ? *at : 0u; /* zeros after the text's NUL */
+            ctrlbus_sink_emit(sink, &byte, 1);
+        }
+#else
+        size_t width = kind == FIELD_TEXT ? 1u : kind;
         bool text_ended = false;
         for (; count > 0u && size > 0u; count--, at += width) {
             uint32_t value = width == 4u   ? *(const uint32_t *)(const void *)at
@@ -245,6 +249,7 @@ void ctrlbus_codec_put_fields(ctrlbus_sink_t *sink, ctrlbus_codec_layout_t layou
             ctrlbus_sink_emit(sink, bytes, piece);
             size -= piece;
         }
+#endif
     }
 }
 
