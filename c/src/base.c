@@ -579,14 +579,12 @@ static const uint8_t ZEROED[CTRLBUS_REQ_HEALTH_CLR_ERROR + 1 - ZEROED_FIRST] COD
 #endif
 
 /* The answer being written: its storage, and when nothing failed, `size` payload bytes of
- * `source` (usually the storage) through `layout` (NULL: its bytes as they are); then the
- * BASE_CMD whose hook runs. */
+ * `source` (usually the storage) through `layout` (NULL: its bytes as they are). */
 typedef struct {
     answer_storage_t out;
     const void *source;
     ctrlbus_codec_layout_t layout;
     int32_t size; /* negative: a check refused the handler's struct (0x8002) */
-    uint8_t base_cmd;
 } reply_t;
 
 /* Checks a request frame in the order of docs/protocol.md §8.2 (its row of the request table
@@ -634,9 +632,9 @@ static NOINLINE uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t
     }
     switch ((ctrlbus_req_kind_t)kind) {
     case CTRLBUS_REQ_BASE_CMD:
+        /* Its hook runs once the OK is out (answer()). */
         if ((args[0] == CTRLBUS_BASE_CMD_REBOOT && config->reboot != NULL) ||
             (args[0] == CTRLBUS_BASE_CMD_ENTER_DFU && config->enter_dfu != NULL)) {
-            reply->base_cmd = args[0];
             result = CTRLBUS_OK;
         }
         break;
@@ -781,18 +779,15 @@ static NOINLINE uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t
 static NOINLINE void answer(ctrlbus_base_t *base, ctrlbus_rx_t rx, const ctrlbus_frame_t *frame,
                             uint32_t now_ms)
 {
-    const ctrlbus_base_config_t *config = base->config;
     reply_t reply;
     reply.source = &reply.out;
     reply.layout = NULL;
     reply.size = 0;
-    reply.base_cmd = 0;
     uint8_t cmd = CTRLBUS_CMD_OK;
-    bool is_long = !config->standard_answers; /* OK and ERROR: long unless standard_answers */
     uint16_t error = 0;
     if (rx != CTRLBUS_RX_FRAME) {
         error = (size_t)rx < sizeof EVENT_ERRORS / sizeof EVENT_ERRORS[0] ? EVENT_ERRORS[rx] : 0u;
-        if (error == CTRLBUS_WIRE_ERR_CHECKSUM && config->reference_checksum_code) {
+        if (error == CTRLBUS_WIRE_ERR_CHECKSUM && base->config->reference_checksum_code) {
             error = CTRLBUS_WIRE_ERR_CHECKSUM_REFERENCE;
         }
         if (error == 0u) {
@@ -801,7 +796,6 @@ static NOINLINE void answer(ctrlbus_base_t *base, ctrlbus_rx_t rx, const ctrlbus
     } else if (frame->cmd <= CTRLBUS_CMD_ECHO) {
         /* SYNC, ECHO: the request copied verbatim, flag and checksum included. */
         cmd = frame->cmd;
-        is_long = frame->is_long;
         reply.source = frame->payload;
         reply.size = (int32_t)frame->payload_len;
     } else {
@@ -814,20 +808,27 @@ static NOINLINE void answer(ctrlbus_base_t *base, ctrlbus_rx_t rx, const ctrlbus
         reply.source = reply.out.bytes;
         reply.layout = NULL;
         reply.size = CTRLBUS_ERROR_ANSWER_SIZE;
-        reply.base_cmd = 0;
     }
+    const ctrlbus_base_config_t *config = base->config;
     ctrlbus_sink_t sink;
     sink.write = config->write; /* the rest is set by start */
     sink.context = config->write_context;
-    size_t size = (size_t)reply.size;
-    ctrlbus_sink_start(&sink, cmd, size, is_long || size > CTRLBUS_STANDARD_PAYLOAD_MAX);
-    ctrlbus_codec_put_fields(&sink, reply.layout, reply.source, size);
+    /* A copy keeps the request's flag; OK and ERROR are long unless standard_answers. (The
+     * reply is read where it is for each call: no copies of it on the stack.) */
+    bool is_long = cmd <= CTRLBUS_CMD_ECHO ? frame->is_long : !config->standard_answers;
+    ctrlbus_sink_start(&sink, cmd, (size_t)reply.size,
+                       is_long || (size_t)reply.size > CTRLBUS_STANDARD_PAYLOAD_MAX);
+    ctrlbus_codec_put_fields(&sink, reply.layout, reply.source, (size_t)reply.size);
     (void)ctrlbus_sink_finish(&sink);
-    if (reply.base_cmd == CTRLBUS_BASE_CMD_REBOOT) {
-        restart(base, now_ms); /* what a handler that returns (a host base) finds */
-        config->reboot(config->context);
-    } else if (reply.base_cmd == CTRLBUS_BASE_CMD_ENTER_DFU) {
-        config->enter_dfu(config->context);
+    /* A BASE_CMD answered OK: its sub-command's hook (run_request found it), the frame being
+     * still where the decoder or the ring holds it. */
+    if (cmd == CTRLBUS_CMD_OK && frame->cmd == CTRLBUS_CMD_BASE_CMD) {
+        if (frame->payload[0] == CTRLBUS_BASE_CMD_REBOOT) {
+            restart(base, now_ms); /* what a handler that returns (a host base) finds */
+            config->reboot(config->context);
+        } else {
+            config->enter_dfu(config->context);
+        }
     }
 }
 

@@ -97,7 +97,7 @@ void ctrlbus_sink_start(ctrlbus_sink_t *sink, uint8_t cmd, size_t payload_len, b
     sink->status = CTRLBUS_OK;
     sink->checksum = 0;
     sink->frame_len = (uint32_t)(payload_len + header_len + 1u);
-    sink->remaining = (uint32_t)payload_len;
+    sink->remaining = (uint16_t)payload_len;
     sink->in_frame = 1;
     sink_out(sink, header, header_len);
 }
@@ -107,7 +107,7 @@ void ctrlbus_sink_emit(ctrlbus_sink_t *sink, const uint8_t *data, size_t len)
     if (len > sink->remaining) { /* remaining is 0 outside a frame */
         ctrlbus_sink_fail(sink, CTRLBUS_ERR_LENGTH); /* so sink_out writes nothing */
     } else {
-        sink->remaining -= (uint32_t)len;
+        sink->remaining = (uint16_t)(sink->remaining - len);
     }
     sink_out(sink, data, len); /* a tail call: no frame of ours while write runs */
 }
