@@ -78,7 +78,7 @@
  * needs at most about 330 bytes of C stack on a Cortex-M0+ at -Os in the default configuration
  * (`make size` prints the worst case per target, from -fstack-usage along the call graph; the
  * deepest path is the decoder's), plus what the handlers and write use. Of that, answering one
- * request takes about 260 bytes, poll included: the storage of the answer a handler fills (64
+ * request takes 256 bytes, poll included: the storage of the answer a handler fills (64
  * bytes, GET_BASE_SENSOR_DATA's, the largest; GET_BASE_CONF and the 0x21 blob are written from
  * the application's storage) and the frame writer, only while that answer is written. Features
  * can be compiled out (ctrlbus/ctrlbus_config.h).
