@@ -372,11 +372,11 @@ size_t ctrlbus_base_feed(ctrlbus_base_t *base, const uint8_t *data, size_t len);
  * clean link; frame.h gives the worst case: with the decoder's bulk path (CTRLBUS_DECODER_FAST 1
  * or 2) a run of fewer than 16 bytes in the ring goes through ctrlbus_decoder_push() one byte at
  * a time and a longer one through ctrlbus_decoder_take(), whichever costs less; without it every
- * byte is pushed, and its ring slot released at once), plus for each request one look-up in the
- * request table (17 rows), its handler, and the answer's size in byte visits (one write call per
- * run of integer fields, per text byte, and for the header and the checksum); no work beyond the
- * ring's content at entry. Stack: see "Footprint" above (about 330 bytes on a Cortex-M0+, plus
- * the handlers' and write's). */
+ * byte is pushed, and its ring slot released right after, or after the answers it completes),
+ * plus for each request one look-up in the request table (17 rows), its handler, and the
+ * answer's size in byte visits (one write call per run of integer fields, per text byte, and for
+ * the header and the checksum); no work beyond the ring's content at entry. Stack: see
+ * "Footprint" above (about 330 bytes on a Cortex-M0+, plus the handlers' and write's). */
 void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms);
 
 /* A new line: the host connected a new peer (a new TCP connection, a re-plugged cable), so the
