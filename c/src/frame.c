@@ -137,9 +137,9 @@ int32_t ctrlbus_sink_begin(ctrlbus_sink_t *sink, uint8_t cmd, size_t payload_len
         sink->status = frame_len;
         return frame_len;
     }
-    ctrlbus_sink_start(sink, cmd, payload_len,
-                       type == CTRLBUS_FRAME_LONG ||
-                           (type == CTRLBUS_FRAME_AUTO && payload_len > CTRLBUS_STANDARD_PAYLOAD_MAX));
+    bool is_long = type == CTRLBUS_FRAME_LONG ||
+                   (type == CTRLBUS_FRAME_AUTO && payload_len > CTRLBUS_STANDARD_PAYLOAD_MAX);
+    ctrlbus_sink_start(sink, cmd, payload_len, is_long);
     return sink->status;
 }
 
