@@ -862,31 +862,35 @@ static bool dropped_after_reboot(ctrlbus_base_t *base)
 }
 
 #if CTRLBUS_DECODER_FAST
-/* Decodes the *run ring bytes from rx_tail on up to the first result, which it returns (NONE:
- * none), and sets *run to the bytes it took: a run shorter than PUSH_BELOW one push() per byte
- * (its inline path), a longer one through take(), which hands a whole frame out in place, its
- * payload still in the ring. Out of line: its locals are not on the stack while the answers are
- * written. */
-static NOINLINE ctrlbus_rx_t decode_run(ctrlbus_base_t *base, size_t *run, uint32_t now_ms,
-                                        ctrlbus_frame_t *frame)
+/* Pushes the *run ring bytes from rx_tail on, one push() each (its inline path), up to the first
+ * result, which it returns (NONE: none), and sets *run to the bytes it took. Out of line: its
+ * locals are not on the stack while the answers are written. */
+static NOINLINE ctrlbus_rx_t push_run(ctrlbus_base_t *base, size_t *run, uint32_t now_ms,
+                                      ctrlbus_frame_t *frame)
 {
     const uint8_t *bytes = base->config->rx_ring + base->rx_tail;
-    size_t left = *run;
     ctrlbus_rx_t rx = CTRLBUS_RX_NONE;
-    if (left < PUSH_BELOW) {
-        size_t taken = 0;
-        while (taken < left && (rx = ctrlbus_decoder_push(&base->decoder, bytes[taken], now_ms,
-                                                          frame)) == CTRLBUS_RX_NONE) {
-            taken++;
-        }
-        if (rx != CTRLBUS_RX_NONE && rx != CTRLBUS_RX_BUSY) {
-            taken++; /* the byte that completed the result was taken too */
-        }
-        *run = taken;
-    } else {
-        rx = ctrlbus_decoder_take(&base->decoder, &bytes, &left, now_ms, frame);
-        *run -= left;
+    size_t taken = 0;
+    while (taken < *run && (rx = ctrlbus_decoder_push(&base->decoder, bytes[taken], now_ms,
+                                                      frame)) == CTRLBUS_RX_NONE) {
+        taken++;
     }
+    if (rx != CTRLBUS_RX_NONE && rx != CTRLBUS_RX_BUSY) {
+        taken++; /* the byte that completed the result was taken too */
+    }
+    *run = taken;
+    return rx;
+}
+
+/* The same through one take(), which hands a whole frame out in place, its payload still in the
+ * ring; its own frame is small, since take's path is poll's deepest. */
+static NOINLINE ctrlbus_rx_t take_run(ctrlbus_base_t *base, size_t *run, uint32_t now_ms,
+                                      ctrlbus_frame_t *frame)
+{
+    const uint8_t *at = base->config->rx_ring + base->rx_tail;
+    size_t left = *run;
+    ctrlbus_rx_t rx = ctrlbus_decoder_take(&base->decoder, &at, &left, now_ms, frame);
+    *run -= left;
     return rx;
 }
 #endif
@@ -919,8 +923,11 @@ void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
             rx = ctrlbus_decoder_push(&base->decoder, config->rx_ring[tail], now_ms, &frame);
             used = rx != CTRLBUS_RX_BUSY;
 #else
+            /* A run shorter than PUSH_BELOW byte by byte, a longer one through take() (both
+             * from tail, which is rx_tail). */
             used = (size_t)((head > tail ? head : config->rx_ring_size) - tail);
-            rx = decode_run(base, &used, now_ms, &frame); /* from tail, which is rx_tail */
+            rx = used < PUSH_BELOW ? push_run(base, &used, now_ms, &frame)
+                                   : take_run(base, &used, now_ms, &frame);
 #endif
         }
         /* A result is answered before its bytes' slots are released, since a frame taken in
