@@ -75,9 +75,9 @@
  *
  * Footprint: ctrlbus_base_t is 64 bytes on a 32-bit MCU (scripts/size.sh prints it), besides the
  * caller's rx_ring, frame_buffer and the optional health and command storage. ctrlbus_base_poll()
- * needs at most about 330 bytes of C stack on a Cortex-M0+ at -Os in the default configuration
+ * needs at most about 310 bytes of C stack on a Cortex-M0+ at -Os in the default configuration
  * (`make size` prints the worst case per target, from -fstack-usage along the call graph; the
- * deepest path is the decoder's), plus what the handlers and write use. Of that, answering one
+ * deepest path is the decoder's take()), plus what the handlers and write use. Of that, answering one
  * request takes 256 bytes, poll included: the storage of the answer a handler fills (64
  * bytes, GET_BASE_SENSOR_DATA's, the largest; GET_BASE_CONF and the 0x21 blob are written from
  * the application's storage) and the frame writer, only while that answer is written. Features
@@ -376,7 +376,7 @@ size_t ctrlbus_base_feed(ctrlbus_base_t *base, const uint8_t *data, size_t len);
  * plus for each request one look-up in the request table (17 rows), its handler, and the
  * answer's size in byte visits (one write call per run of integer fields, per text byte, and for
  * the header and the checksum); no work beyond the ring's content at entry. Stack: see
- * "Footprint" above (about 330 bytes on a Cortex-M0+, plus the handlers' and write's). */
+ * "Footprint" above (about 310 bytes on a Cortex-M0+, plus the handlers' and write's). */
 void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms);
 
 /* A new line: the host connected a new peer (a new TCP connection, a re-plugged cable), so the
