@@ -24,8 +24,10 @@
 #define ctrlbus_frame_write TWIN(frame_write)
 #define ctrlbus_rx_name TWIN(rx_name)
 #define ctrlbus_sink_begin TWIN(sink_begin)
+#define ctrlbus_sink_emit TWIN(sink_emit)
 #define ctrlbus_sink_end TWIN(sink_end)
 #define ctrlbus_sink_fail TWIN(sink_fail)
+#define ctrlbus_sink_finish TWIN(sink_finish)
 #define ctrlbus_sink_init TWIN(sink_init)
 #define ctrlbus_sink_init_buffer TWIN(sink_init_buffer)
 #define ctrlbus_sink_put TWIN(sink_put)
@@ -34,6 +36,7 @@
 #define ctrlbus_sink_put_u16 TWIN(sink_put_u16)
 #define ctrlbus_sink_put_u32 TWIN(sink_put_u32)
 #define ctrlbus_sink_put_u8 TWIN(sink_put_u8)
+#define ctrlbus_sink_start TWIN(sink_start)
 
 #include "../src/frame.c"
 

@@ -403,24 +403,6 @@ static bool scale_to(int32_t *a, int32_t *b, int32_t peak_a, int32_t peak_b, uin
 
 /* ---- answering ------------------------------------------------------------------------------ */
 
-/* Keeps a helper with several callers out of line (GCC, clang): -Os alone copies it into each. */
-#if defined(__GNUC__)
-#define SHARED __attribute__((noinline))
-#else
-#define SHARED
-#endif
-
-static ctrlbus_frame_type_t answer_type(const ctrlbus_base_t *base)
-{
-    return base->config->standard_answers ? CTRLBUS_FRAME_AUTO : CTRLBUS_FRAME_LONG;
-}
-
-static uint16_t handler_error(int32_t result)
-{
-    return result == CTRLBUS_ERR_UNSUPPORTED ? CTRLBUS_WIRE_ERR_UNSUPPORTED
-                                             : CTRLBUS_WIRE_ERR_OPERATION;
-}
-
 /* What a rebooted base forgets (docs/base-framework.md behaviour 12): the input not yet
  * answered, the command queue, the health list, the watchdog's state and the uptime origin. */
 static void restart(ctrlbus_base_t *base, uint32_t now_ms)
@@ -450,12 +432,19 @@ static bool sdk2020(const ctrlbus_base_config_t *config)
 #endif
 }
 
-/* SET_BASE_MOTOR: the wheel limit, then the handler. Returns the handler's result. */
-static int32_t set_wheel_speeds(ctrlbus_base_t *base, const ctrlbus_set_base_motor_request_t *motor)
+/* A request's 32-bit argument, read straight from the payload (at any alignment). */
+static int32_t argument_s32(const uint8_t *at)
+{
+    return codec_take_s32(&at);
+}
+
+/* SET_BASE_MOTOR (its arguments: four wheel speeds, the last two ignored): the wheel limit, then
+ * the handler. Returns the handler's result. */
+static int32_t set_wheel_speeds(ctrlbus_base_t *base, const uint8_t *args)
 {
     const ctrlbus_base_config_t *config = base->config;
-    int32_t left = motor->speeds_mm_s[0];
-    int32_t right = motor->speeds_mm_s[1];
+    int32_t left = argument_s32(args);
+    int32_t right = argument_s32(args + 4);
     bool clamped = false;
 #if CTRLBUS_CONFIG_LIMITS
     clamped = scale_to(&left, &right, left, right, config->limits.max_wheel_mm_s);
@@ -464,29 +453,41 @@ static int32_t set_wheel_speeds(ctrlbus_base_t *base, const ctrlbus_set_base_mot
     return config->set_wheel_speeds(config->context, left, right);
 }
 
-/* SET_V_AND_GET_DEADRECKON: the limits, the handler, then the profile's timestamp. Returns the
- * handler's result. */
-static int32_t set_velocity(ctrlbus_base_t *base, ctrlbus_set_v_and_get_deadreckon_request_t v,
-                            ctrlbus_set_v_and_get_deadreckon_answer_t *out, uint32_t now_ms)
+/* SET_V_AND_GET_DEADRECKON's part of the answer storage: the handler's input and its answer. */
+typedef struct {
+    ctrlbus_set_v_and_get_deadreckon_answer_t answer; /* first: zeroed (ZEROED below) */
+    ctrlbus_set_v_and_get_deadreckon_request_t velocity;
+} motion_storage_t;
+
+/* SET_V_AND_GET_DEADRECKON (its arguments: vx, vy, omega): the limits, the handler, then the
+ * profile's timestamp. Returns the handler's result. */
+static int32_t set_velocity(ctrlbus_base_t *base, const uint8_t *args, motion_storage_t *motion,
+                            uint32_t now_ms)
 {
     const ctrlbus_base_config_t *config = base->config;
+    ctrlbus_set_v_and_get_deadreckon_request_t *v = &motion->velocity;
+    ctrlbus_set_v_and_get_deadreckon_answer_t *out = &motion->answer;
+    v->vx_mps_q16 = argument_s32(args);
+    v->vy_mps_q16 = argument_s32(args + 4);
+    v->omega_radps_q16 = argument_s32(args + 8);
     bool clamped = false;
 #if CTRLBUS_CONFIG_LIMITS
     const ctrlbus_base_limits_t *limits = &config->limits;
-    clamped = clamp_to(&v.vx_mps_q16, limits->max_vx_mps_q16);
-    clamped = clamp_to(&v.omega_radps_q16, limits->max_omega_radps_q16) || clamped;
+    clamped = clamp_to(&v->vx_mps_q16, limits->max_vx_mps_q16);
+    clamped = clamp_to(&v->omega_radps_q16, limits->max_omega_radps_q16) || clamped;
     if (limits->wheel_track_mm != 0u) {
         int32_t left = 0;
         int32_t right = 0;
-        ctrlbus_diffdrive_wheel_speeds(v.vx_mps_q16, v.omega_radps_q16, limits->wheel_track_mm,
+        ctrlbus_diffdrive_wheel_speeds(v->vx_mps_q16, v->omega_radps_q16, limits->wheel_track_mm,
                                        &left, &right);
-        clamped =
-            scale_to(&v.vx_mps_q16, &v.omega_radps_q16, left, right, limits->max_wheel_mm_s) ||
-            clamped;
+        clamped = scale_to(&v->vx_mps_q16, &v->omega_radps_q16, left, right,
+                           limits->max_wheel_mm_s) ||
+                  clamped;
     }
 #endif
-    note_motion(base, clamped, v.vx_mps_q16 != 0 || v.vy_mps_q16 != 0 || v.omega_radps_q16 != 0);
-    int32_t result = config->set_velocity(config->context, &v, out);
+    note_motion(base, clamped,
+                v->vx_mps_q16 != 0 || v->vy_mps_q16 != 0 || v->omega_radps_q16 != 0);
+    int32_t result = config->set_velocity(config->context, v, out);
     if (!sdk2020(config)) {
         out->has_timestamp_ms = false;
     } else if (!out->has_timestamp_ms) {
@@ -496,23 +497,23 @@ static int32_t set_velocity(ctrlbus_base_t *base, ctrlbus_set_v_and_get_deadreck
     return result;
 }
 
-/* HEALTH_GET_HEALTH: the levels of the registered errors and their number. */
-static void health_summary(const ctrlbus_base_t *base, ctrlbus_health_get_health_answer_t *out)
+/* HEALTH_GET_HEALTH's two bytes: the levels of the registered errors and their number. */
+static void health_summary(const ctrlbus_base_t *base, uint8_t out[2])
 {
-    out->flags = 0;
-    out->error_count = 0;
+    uint8_t flags = 0;
 #if CTRLBUS_CONFIG_HEALTH
     for (uint8_t i = 0; i < base->health_count; i++) {
-        uint32_t level = health_code_at(base, i) >> 24;
-        out->flags = (uint8_t)(out->flags | (level & HEALTH_LEVEL_BITS));
+        flags = (uint8_t)(flags | ((health_code_at(base, i) >> 24) & HEALTH_LEVEL_BITS));
     }
-    out->error_count = base->health_count;
+    out[1] = base->health_count;
 #else
     (void)base;
+    out[1] = 0;
 #endif
+    out[0] = flags;
 }
 
-/* HEALTH_GET_ERROR: the entry at index. Returns false when there is none. */
+/* HEALTH_GET_ERROR: the entry at index (out zeroed). Returns false when there is none. */
 static bool health_entry(const ctrlbus_base_t *base, uint8_t index,
                          ctrlbus_health_get_error_answer_t *out)
 {
@@ -534,22 +535,10 @@ static bool health_entry(const ctrlbus_base_t *base, uint8_t index,
 #endif
 }
 
-/* POLL_BASE_CMD: the command at the head of the queue, in the profile's form. */
-static void poll_answer(const ctrlbus_base_t *base, ctrlbus_poll_base_cmd_answer_t *out)
-{
-#if CTRLBUS_CONFIG_COMMAND_QUEUE
-    out->has_command = base->command_count != 0u;
-    out->command = out->has_command ? command_at_head(base) : 0u;
-#endif
-    /* Nothing pending: OK 0 (base_ref v4), or FF 00 for the SDK's fixed-size read. */
-    out->payload_size =
-        out->has_command || sdk2020(base->config) ? CTRLBUS_POLL_BASE_CMD_ANSWER_SIZE : 0u;
-}
-
-/* Where a handler's answer struct lives while the handler fills it and it is written. Only one
- * member is in use per request, and only that member is zeroed: this is storage, not a tagged
- * answer (nothing switches on it again). GET_BASE_CONF's answer, the largest layout, is not here:
- * it is written straight from the application's struct (config->base_conf). */
+/* Where the answer to the request being handled lives while a handler fills it and it is
+ * written: on poll's stack, as large as the largest member (GET_BASE_SENSOR_DATA's 64 bytes).
+ * Only the member in use is zeroed. GET_BASE_CONF and the 0x21 blob are written from the
+ * application's own storage instead. */
 typedef union {
     ctrlbus_connect_base_answer_t connect_base;
     ctrlbus_get_base_status_answer_t get_base_status;
@@ -557,74 +546,150 @@ typedef union {
     ctrlbus_get_base_sensor_data_answer_t get_base_sensor_data;
     ctrlbus_get_base_bumper_data_answer_t get_base_bumper_data;
     ctrlbus_get_charger_data_answer_t get_charger_data;
-    ctrlbus_set_v_and_get_deadreckon_answer_t set_v_and_get_deadreckon;
-    ctrlbus_poll_base_cmd_answer_t poll_base_cmd;
-    ctrlbus_health_get_health_answer_t health_get_health;
+    motion_storage_t motion;
     ctrlbus_health_get_error_answer_t health_get_error;
+    uint8_t bytes[2]; /* written as they are: an ERROR code, POLL_BASE_CMD, HEALTH_GET_HEALTH */
 } answer_storage_t;
 
-/* What a request is answered with when nothing failed: an OK frame of `size` payload bytes
- * (negative: a check refused the handler's struct), its layout (NULL: empty) and its struct. */
+/* GET_BASE_STATUS's two bytes go out as they are in its struct. */
+typedef char status_is_two_bytes[offsetof(ctrlbus_get_base_status_answer_t, power_status) == 1u
+                                     ? 1
+                                     : -1];
+
+/* How many bytes at the start of the storage each request's handler fills (zeroed before it
+ * runs), by request kind from CONNECT_BASE on; 0: none. */
+#define ZEROED_FIRST CTRLBUS_REQ_CONNECT_BASE
+static const uint8_t ZEROED[CTRLBUS_REQ_HEALTH_CLR_ERROR + 1 - ZEROED_FIRST] CODEC_ROM = {
+    [CTRLBUS_REQ_CONNECT_BASE - ZEROED_FIRST] = sizeof(ctrlbus_connect_base_answer_t),
+    [CTRLBUS_REQ_GET_BASE_STATUS - ZEROED_FIRST] = sizeof(ctrlbus_get_base_status_answer_t),
+    [CTRLBUS_REQ_GET_BASE_MOTOR_DATA - ZEROED_FIRST] = sizeof(ctrlbus_get_base_motor_data_answer_t),
+    [CTRLBUS_REQ_GET_BASE_SENSOR_DATA - ZEROED_FIRST] =
+        sizeof(ctrlbus_get_base_sensor_data_answer_t),
+    [CTRLBUS_REQ_GET_BASE_BUMPER_DATA - ZEROED_FIRST] =
+        sizeof(ctrlbus_get_base_bumper_data_answer_t),
+    [CTRLBUS_REQ_GET_CHARGER_DATA - ZEROED_FIRST] = sizeof(ctrlbus_get_charger_data_answer_t),
+    [CTRLBUS_REQ_SET_V_AND_GET_DEADRECKON - ZEROED_FIRST] =
+        sizeof(ctrlbus_set_v_and_get_deadreckon_answer_t),
+    [CTRLBUS_REQ_HEALTH_GET_ERROR - ZEROED_FIRST] = sizeof(ctrlbus_health_get_error_answer_t),
+};
+
+/* Keeps a function out of line (GCC, clang): answer()'s storage is then on the stack only while
+ * an answer is written, not while the decoder works. */
+#if defined(__GNUC__)
+#define NOINLINE __attribute__((noinline))
+#else
+#define NOINLINE
+#endif
+
+/* The answer being written: its storage, and when nothing failed, `size` payload bytes of
+ * `source` (usually the storage) through `layout` (NULL: its bytes as they are). */
 typedef struct {
-    int32_t size;
+    answer_storage_t out;
+    const void *source;
     ctrlbus_codec_layout_t layout;
-    const void *answer;
+    int32_t size; /* negative: a check refused the handler's struct (0x8002) */
 } reply_t;
 
-/* answer_request's result besides 0 (the reply is to be written) and an ERROR code. */
-#define ALREADY_ANSWERED 1u
-
-/* The requests whose answer a handler (or the stack) fills into a struct: one switch; each case
- * zeroes and fills its own member of *out, computes its size once (the layout's _size, or the
- * constant) and names its layout. Returns 0 (reply set) or the ERROR code to answer with. */
-static uint16_t answer_filled(ctrlbus_base_t *base, const ctrlbus_request_t *request,
-                              answer_storage_t *out, reply_t *reply, uint32_t now_ms)
+/* Checks a request frame in the order of docs/protocol.md §8.2 (its row of the request table
+ * gives the expected length), then runs it: one case per request, each checking its argument
+ * value, then whether it is implemented. Returns 0 with *reply set, or the ERROR code to answer.
+ * Out of line: its frame is on the stack while it runs, not while the answer is written. */
+static NOINLINE uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t *frame,
+                                     reply_t *reply, uint32_t now_ms)
 {
+    answer_storage_t *out = &reply->out;
     const ctrlbus_base_config_t *config = base->config;
-    void *context = config->context;
-    int32_t result = CTRLBUS_ERR_UNSUPPORTED; /* the handler's; unsupported while it is missing */
+    int32_t result = CTRLBUS_ERR_UNSUPPORTED; /* stays so where a check or the handler lacks */
     int32_t size = 0;
     ctrlbus_codec_layout_t layout = NULL;
-    switch (request->kind) {
+    const uint8_t *args = frame->payload;
+    size_t len = frame->payload_len;
+    uint8_t kind = CTRLBUS_REQ_BASE_CMD;
+    size_t expected = CTRLBUS_BASE_CMD_REQUEST_SIZE;
+    if (frame->cmd == CTRLBUS_CMD_CTRL_BUS) {
+        /* Any CTRL_BUS frame that passed its checksum shows that the Core is alive (§9.1). */
+        base->last_feed_ms = now_ms;
+        clear_flags(base, FLAG_WATCHDOG_EXPIRED);
+        bool health = len != 0u && args[0] == CTRLBUS_CODE_HEALTH_MGMT;
+        if (len <= (size_t)health) {
+            return CTRLBUS_WIRE_ERR_FORMAT; /* no request code, or HEALTH_MGMT without its sub */
+        }
+        const ctrlbus_codec_request_layout_t *row = ctrlbus_codec_request_layouts;
+        while (CODEC_ROM_BYTE(&row->code) != args[0] ||
+               (health && CODEC_ROM_BYTE(&row->subcommand) != args[1])) {
+            if (++row == ctrlbus_codec_request_layouts + CTRLBUS_CODEC_REQUEST_LAYOUTS) {
+                return health ? CTRLBUS_WIRE_ERR_OPERATION : CTRLBUS_WIRE_ERR_UNSUPPORTED;
+            }
+        }
+        kind = CODEC_ROM_BYTE(&row->kind);
+        expected = CODEC_ROM_BYTE(&row->size);
+        args += health ? 2 : 1;
+    } else if (frame->cmd != CTRLBUS_CMD_BASE_CMD) {
+        return CTRLBUS_WIRE_ERR_UNSUPPORTED; /* answer CMDs and reserved ones too */
+    }
+    if (len != expected) {
+        return CTRLBUS_WIRE_ERR_FORMAT;
+    }
+    if (kind >= ZEROED_FIRST) {
+        memset(out, 0, CODEC_ROM_BYTE(&ZEROED[kind - ZEROED_FIRST]));
+    }
+    switch ((ctrlbus_req_kind_t)kind) {
+    case CTRLBUS_REQ_BASE_CMD:
+        /* Its hook runs once the OK is out (answer()). */
+        if ((args[0] == CTRLBUS_BASE_CMD_REBOOT && config->reboot != NULL) ||
+            (args[0] == CTRLBUS_BASE_CMD_ENTER_DFU && config->enter_dfu != NULL)) {
+            result = CTRLBUS_OK;
+        }
+        break;
     case CTRLBUS_REQ_CONNECT_BASE:
-        if (config->connect_info != NULL) {
-            memset(&out->connect_base, 0, sizeof out->connect_base);
-            result = config->connect_info(context, &out->connect_base);
-            out->connect_base.has_firmware_version_suffix = sdk2020(config); /* the profile's size */
+        if (codec_connect_version_known(args[0]) && config->connect_info != NULL) {
+            result = config->connect_info(config->context, &out->connect_base);
+            out->connect_base.has_firmware_version_suffix = sdk2020(config); /* the profile's */
             size = ctrlbus_connect_base_answer_size(&out->connect_base);
             layout = ctrlbus_codec_connect_base_layout;
         }
         break;
+    case CTRLBUS_REQ_GET_BASE_CONF:
+        if (config->base_conf != NULL) {
+            result = CTRLBUS_OK; /* streamed from the application's struct: no copy */
+            reply->source = config->base_conf;
+            size = ctrlbus_get_base_conf_answer_size(config->base_conf);
+            layout = ctrlbus_codec_get_base_conf_layout;
+        }
+        break;
+#if CTRLBUS_CONFIG_CONF_ADV
+    case CTRLBUS_REQ_GET_BASE_CONF_ADV:
+        if (config->binary_config != NULL && config->binary_config_size != 0u) {
+            result = CTRLBUS_OK;
+            reply->source = config->binary_config;
+            size = (int32_t)config->binary_config_size; /* init checked it */
+        }
+        break;
+#endif
     case CTRLBUS_REQ_GET_BASE_STATUS:
         if (config->status != NULL) {
-            memset(&out->get_base_status, 0, sizeof out->get_base_status);
-            result = config->status(context, &out->get_base_status);
+            result = config->status(config->context, &out->get_base_status);
             size = CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE;
-            layout = ctrlbus_codec_get_base_status_layout;
         }
         break;
     case CTRLBUS_REQ_GET_BASE_MOTOR_DATA:
         if (config->motor_data != NULL) {
-            memset(&out->get_base_motor_data, 0, sizeof out->get_base_motor_data);
-            result = config->motor_data(context, &out->get_base_motor_data);
+            result = config->motor_data(config->context, &out->get_base_motor_data);
             size = CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE;
             layout = ctrlbus_codec_get_base_motor_data_layout;
         }
         break;
     case CTRLBUS_REQ_GET_BASE_SENSOR_DATA:
         if (config->sensor_data != NULL) {
-            memset(&out->get_base_sensor_data, 0, sizeof out->get_base_sensor_data);
-            result = config->sensor_data(context, &out->get_base_sensor_data);
+            result = config->sensor_data(config->context, &out->get_base_sensor_data);
             size = CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE;
             layout = ctrlbus_codec_get_base_sensor_data_layout;
         }
         break;
     case CTRLBUS_REQ_GET_BASE_BUMPER_DATA:
         if (config->bumper_data != NULL) {
-            memset(&out->get_base_bumper_data, 0, sizeof out->get_base_bumper_data);
-            result = config->bumper_data(context, &out->get_base_bumper_data);
+            result = config->bumper_data(config->context, &out->get_base_bumper_data);
             if (out->get_base_bumper_data.payload_size == 0u || sdk2020(config)) {
-                /* same value, padded */
                 out->get_base_bumper_data.payload_size = CTRLBUS_GET_BASE_BUMPER_DATA_ANSWER_SIZE;
             }
             size = ctrlbus_get_base_bumper_data_answer_size(&out->get_base_bumper_data);
@@ -632,134 +697,97 @@ static uint16_t answer_filled(ctrlbus_base_t *base, const ctrlbus_request_t *req
         }
         break;
     case CTRLBUS_REQ_GET_CHARGER_DATA:
-        if (config->charger_data != NULL) {
-            memset(&out->get_charger_data, 0, sizeof out->get_charger_data);
-            result = config->charger_data(context, &out->get_charger_data);
+        if (codec_charger_type_known(args[0]) && config->charger_data != NULL) {
+            result = config->charger_data(config->context, &out->get_charger_data);
             size = ctrlbus_get_charger_data_answer_size(&out->get_charger_data);
             layout = ctrlbus_codec_get_charger_data_layout;
         }
         break;
+    case CTRLBUS_REQ_SET_BASE_MOTOR:
+        if (config->set_wheel_speeds != NULL) {
+            result = set_wheel_speeds(base, args);
+        }
+        break;
     case CTRLBUS_REQ_SET_V_AND_GET_DEADRECKON:
         if (config->set_velocity != NULL) {
-            memset(&out->set_v_and_get_deadreckon, 0, sizeof out->set_v_and_get_deadreckon);
-            result = set_velocity(base, request->as.set_v_and_get_deadreckon,
-                                  &out->set_v_and_get_deadreckon, now_ms);
-            size = ctrlbus_set_v_and_get_deadreckon_answer_size(&out->set_v_and_get_deadreckon);
+            result = set_velocity(base, args, &out->motion, now_ms);
+            size = out->motion.answer.has_timestamp_ms
+                       ? CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_WITH_TIMESTAMP
+                       : CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE;
             layout = ctrlbus_codec_set_v_and_get_deadreckon_layout;
         }
         break;
     case CTRLBUS_REQ_POLL_BASE_CMD:
-        memset(&out->poll_base_cmd, 0, sizeof out->poll_base_cmd);
-        poll_answer(base, &out->poll_base_cmd);
+        /* The oldest pending command; nothing pending: OK 0 (base_ref v4), or FF 00 for the
+         * SDK's fixed-size read. */
         result = CTRLBUS_OK;
-        size = out->poll_base_cmd.payload_size; /* 0 or 2, consistent by construction */
-        layout = ctrlbus_codec_poll_base_cmd_layout;
-        break;
-    case CTRLBUS_REQ_HEALTH_GET_HEALTH:
-        health_summary(base, &out->health_get_health);
-        result = CTRLBUS_OK;
-        size = CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE;
-        layout = ctrlbus_codec_health_get_health_layout;
-        break;
-    case CTRLBUS_REQ_HEALTH_GET_ERROR:
-        memset(&out->health_get_error, 0, sizeof out->health_get_error);
-        if (!health_entry(base, request->as.health_get_error.index, &out->health_get_error)) {
-            return CTRLBUS_WIRE_ERR_OPERATION;
+        out->bytes[0] = CTRLBUS_POLL_NOTHING_PENDING;
+        out->bytes[1] = 0;
+#if CTRLBUS_CONFIG_COMMAND_QUEUE
+        if (base->command_count != 0u) {
+            out->bytes[0] = command_at_head(base);
+            size = CTRLBUS_POLL_BASE_CMD_ANSWER_SIZE;
         }
-        result = CTRLBUS_OK;
-        size = ctrlbus_health_get_error_answer_size(&out->health_get_error);
-        layout = ctrlbus_codec_health_get_error_layout;
-        break;
-    default: break; /* GET_AUXILIARY_ANCHOR has no layout, and features compiled out: 0x8000 */
-    }
-    if (result < 0) {
-        return handler_error(result);
-    }
-    reply->size = size;
-    reply->layout = layout;
-    reply->answer = out;
-    return 0;
-}
-
-/* Runs the application's part of a validated request: one dispatch per request. Returns 0 when
- * *reply is to be written, ALREADY_ANSWERED, or the ERROR code to answer with (nothing written
- * yet then). */
-static uint16_t answer_request(ctrlbus_base_t *base, const ctrlbus_request_t *request,
-                               answer_storage_t *out, reply_t *reply, ctrlbus_sink_t *sink,
-                               ctrlbus_frame_type_t type, uint32_t now_ms)
-{
-    const ctrlbus_base_config_t *config = base->config;
-    void *context = config->context;
-    int32_t result = CTRLBUS_OK;
-    switch (request->kind) {
-    case CTRLBUS_REQ_GET_BASE_CONF:
-        if (config->base_conf == NULL) {
-            return CTRLBUS_WIRE_ERR_UNSUPPORTED;
-        }
-        /* Streamed from the application's struct: no copy on the stack. */
-        reply->size = ctrlbus_get_base_conf_answer_size(config->base_conf);
-        reply->layout = ctrlbus_codec_get_base_conf_layout;
-        reply->answer = config->base_conf;
-        return 0;
-#if CTRLBUS_CONFIG_CONF_ADV
-    case CTRLBUS_REQ_GET_BASE_CONF_ADV:
-        if (config->binary_config == NULL || config->binary_config_size == 0u) {
-            return CTRLBUS_WIRE_ERR_UNSUPPORTED;
-        }
-        /* The layout reads the blob pointer at the struct's start: binary_config itself. */
-        reply->size = (int32_t)config->binary_config_size; /* init checked it */
-        reply->layout = ctrlbus_codec_get_base_conf_adv_layout;
-        reply->answer = &config->binary_config;
-        return 0;
 #endif
-    case CTRLBUS_REQ_SET_BASE_MOTOR:
-        result = config->set_wheel_speeds != NULL
-                     ? set_wheel_speeds(base, &request->as.set_base_motor)
-                     : CTRLBUS_ERR_UNSUPPORTED;
+        if (sdk2020(config)) {
+            size = CTRLBUS_POLL_BASE_CMD_ANSWER_SIZE;
+        }
         break;
     case CTRLBUS_REQ_POLL_BASE_ANS_CMD:
+        result = CTRLBUS_OK;
 #if CTRLBUS_CONFIG_COMMAND_QUEUE
         command_taken(base);
 #endif
         break;
     case CTRLBUS_REQ_SEND_EVENT:
-        if (config->on_event != NULL) {
-            result = config->on_event(context, request->as.send_event.event);
-        }
+        result = config->on_event != NULL ? config->on_event(config->context, args[0]) : CTRLBUS_OK;
+        break;
+    case CTRLBUS_REQ_HEALTH_GET_HEALTH:
+        result = CTRLBUS_OK;
+        health_summary(base, out->bytes);
+        size = CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE;
+        break;
+    case CTRLBUS_REQ_HEALTH_GET_ERROR:
+        /* No such index (or no registry): 0x8002. */
+        result = health_entry(base, args[0], &out->health_get_error) ? CTRLBUS_OK
+                                                                    : CTRLBUS_ERR_ARGUMENT;
+        size = CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE;
+        layout = ctrlbus_codec_health_get_error_layout;
         break;
     case CTRLBUS_REQ_HEALTH_CLR_ERROR:
-        if (ctrlbus_base_health_clear(base, request->as.health_clr_error.error_code) <= 0) {
-            return CTRLBUS_WIRE_ERR_OPERATION; /* not registered (or no registry) */
-        }
+        /* Not registered (or no registry): 0x8002. */
+        result = ctrlbus_base_health_clear(base, (uint32_t)argument_s32(args)) > 0
+                     ? CTRLBUS_OK
+                     : CTRLBUS_ERR_ARGUMENT;
         break;
-    case CTRLBUS_REQ_BASE_CMD: {
-        /* Its hook runs once the answer is out. */
-        bool reboot = request->as.base_cmd.subcommand == CTRLBUS_BASE_CMD_REBOOT;
-        void (*hook)(void *) = reboot ? config->reboot : config->enter_dfu;
-        if (hook == NULL) {
-            return CTRLBUS_WIRE_ERR_UNSUPPORTED;
-        }
-        (void)ctrlbus_codec_write_ok(sink, 0, NULL, NULL, type);
-        if (reboot) {
-            restart(base, now_ms); /* what a handler that returns (a host base) finds */
-        }
-        hook(context);
-        return ALREADY_ANSWERED;
+    default: break; /* GET_AUXILIARY_ANCHOR, and features compiled out: 0x8000 */
     }
-    default: return answer_filled(base, request, out, reply, now_ms);
+    if (result < 0) {
+        return result == CTRLBUS_ERR_UNSUPPORTED ? CTRLBUS_WIRE_ERR_UNSUPPORTED
+                                                 : CTRLBUS_WIRE_ERR_OPERATION;
     }
-    return result < 0 ? handler_error(result) : 0u; /* the empty OKs: reply as set */
+    /* A struct the check refuses (text that is not ASCII, a count over 8, ...) is a handler
+     * failure; it is found before any byte goes out. */
+    if (size < 0) {
+        return CTRLBUS_WIRE_ERR_OPERATION;
+    }
+    reply->size = size;
+    reply->layout = layout;
+    return 0;
 }
 
-/* Decodes a request, runs it and writes its one answer (OK, ERROR, or the SYNC/ECHO copy), or
- * writes the ERROR for a decoder event (rx not CTRLBUS_RX_FRAME): the one place answers leave. */
-static void answer(ctrlbus_base_t *base, ctrlbus_rx_t rx, const ctrlbus_frame_t *frame,
-                   uint32_t now_ms, ctrlbus_sink_t *sink, ctrlbus_frame_type_t type)
+/* Writes the one answer to a decoder result: the ERROR for an event (nothing for a timeout),
+ * the copy of a SYNC or ECHO request, or a request's OK or ERROR. The one place answers leave;
+ * a write callback's failure cuts the answer short, and there is nothing more to say. */
+static NOINLINE void answer(ctrlbus_base_t *base, ctrlbus_rx_t rx, const ctrlbus_frame_t *frame,
+                            uint32_t now_ms)
 {
-    uint16_t error;
-    ctrlbus_request_t request;
-    answer_storage_t out;
-    reply_t reply = {0, NULL, NULL};
+    reply_t reply;
+    reply.source = &reply.out;
+    reply.layout = NULL;
+    reply.size = 0;
+    uint8_t cmd = CTRLBUS_CMD_OK;
+    uint16_t error = 0;
     if (rx != CTRLBUS_RX_FRAME) {
         error = (size_t)rx < sizeof EVENT_ERRORS / sizeof EVENT_ERRORS[0] ? EVENT_ERRORS[rx] : 0u;
         if (error == CTRLBUS_WIRE_ERR_CHECKSUM && base->config->reference_checksum_code) {
@@ -768,58 +796,57 @@ static void answer(ctrlbus_base_t *base, ctrlbus_rx_t rx, const ctrlbus_frame_t 
         if (error == 0u) {
             return; /* a timeout: nothing to say */
         }
-    } else if (frame->cmd == CTRLBUS_CMD_SYNC || frame->cmd == CTRLBUS_CMD_ECHO) {
-        /* The request copied verbatim, flag and checksum included; not motor traffic. */
-        (void)ctrlbus_frame_write(sink, frame->cmd, frame->payload, frame->payload_len,
-                                  frame->is_long ? CTRLBUS_FRAME_LONG : CTRLBUS_FRAME_STANDARD);
-        return;
+    } else if (frame->cmd <= CTRLBUS_CMD_ECHO) {
+        /* SYNC, ECHO: the request copied verbatim, flag and checksum included. */
+        cmd = frame->cmd;
+        reply.source = frame->payload;
+        reply.size = (int32_t)frame->payload_len;
     } else {
-        if (frame->cmd == CTRLBUS_CMD_CTRL_BUS) {
-            /* Any CTRL_BUS frame that passed its checksum shows that the Core is alive (§9.1). */
-            base->last_feed_ms = now_ms;
-            clear_flags(base, FLAG_WATCHDOG_EXPIRED);
-        }
-        int32_t result =
-            ctrlbus_request_decode(&request, frame->cmd, frame->payload, frame->payload_len);
-        error = result < 0 ? ctrlbus_request_error_code(&request, result)
-                           : answer_request(base, &request, &out, &reply, sink, type, now_ms);
-        if (error == ALREADY_ANSWERED) {
-            return;
-        }
-        /* A struct the check refuses (text that is not ASCII, a count over 8, ...) is a handler
-         * failure; it is found before any byte goes out. */
-        if (error == 0u && reply.size < 0) {
-            error = CTRLBUS_WIRE_ERR_OPERATION;
-        }
+        error = run_request(base, frame, &reply, now_ms);
     }
-    /* A write callback's failure cuts an answer short; there is nothing more to say. */
     if (error != 0u) {
-        (void)ctrlbus_error_answer_write(sink, error, type);
-    } else {
-        (void)ctrlbus_codec_write_ok(sink, reply.size, reply.layout, reply.answer, type);
+        cmd = CTRLBUS_CMD_ERROR;
+        reply.out.bytes[0] = (uint8_t)(error & 0xFFu);
+        reply.out.bytes[1] = (uint8_t)(error >> 8);
+        reply.source = reply.out.bytes;
+        reply.layout = NULL;
+        reply.size = CTRLBUS_ERROR_ANSWER_SIZE;
+    }
+    const ctrlbus_base_config_t *config = base->config;
+    ctrlbus_sink_t sink;
+    sink.write = config->write; /* the rest is set by start */
+    sink.context = config->write_context;
+    /* A copy keeps the request's flag; OK and ERROR are long unless standard_answers. (The
+     * reply is read where it is for each call: no copies of it on the stack.) */
+    bool is_long = cmd <= CTRLBUS_CMD_ECHO ? frame->is_long : !config->standard_answers;
+    ctrlbus_sink_start(&sink, cmd, (size_t)reply.size,
+                       is_long || (size_t)reply.size > CTRLBUS_STANDARD_PAYLOAD_MAX);
+    ctrlbus_codec_put_fields(&sink, reply.layout, reply.source, (size_t)reply.size);
+    (void)ctrlbus_sink_finish(&sink);
+    /* A BASE_CMD answered OK: its sub-command's hook (run_request found it), the frame being
+     * still where the decoder or the ring holds it. */
+    if (cmd == CTRLBUS_CMD_OK && frame->cmd == CTRLBUS_CMD_BASE_CMD) {
+        if (frame->payload[0] == CTRLBUS_BASE_CMD_REBOOT) {
+            restart(base, now_ms); /* what a handler that returns (a host base) finds */
+            config->reboot(config->context);
+        } else {
+            config->enter_dfu(config->context);
+        }
     }
 }
 
-/* Answers `first` (a result ctrlbus_decoder_push() returned, with *first_frame; NONE or BUSY for
- * none), then every result the decoder has ready. Returns how many there were. */
-static unsigned drain(ctrlbus_base_t *base, uint32_t now_ms, ctrlbus_rx_t first,
-                      const ctrlbus_frame_t *first_frame)
+/* Answers `rx` (a result push or take returned, with *frame; NONE or BUSY for none), then every
+ * result the decoder has ready (into *frame). Returns how many there were. */
+static inline unsigned drain(ctrlbus_base_t *base, uint32_t now_ms, ctrlbus_rx_t rx,
+                      ctrlbus_frame_t *frame)
 {
-    const ctrlbus_base_config_t *config = base->config;
-    ctrlbus_sink_t sink;
-    (void)ctrlbus_sink_init(&sink, config->write, config->write_context);
     unsigned results = 0;
-    ctrlbus_frame_t frame;
-    ctrlbus_frame_type_t type = answer_type(base);
-    if (first != CTRLBUS_RX_NONE && first != CTRLBUS_RX_BUSY) {
-        frame = *first_frame;
-    } else {
-        first = ctrlbus_decoder_next(&base->decoder, &frame);
+    if (rx == CTRLBUS_RX_NONE || rx == CTRLBUS_RX_BUSY) {
+        rx = ctrlbus_decoder_next(&base->decoder, frame);
     }
-    for (ctrlbus_rx_t rx = first; rx != CTRLBUS_RX_NONE;
-         rx = ctrlbus_decoder_next(&base->decoder, &frame)) {
+    for (; rx != CTRLBUS_RX_NONE; rx = ctrlbus_decoder_next(&base->decoder, frame)) {
         results++;
-        answer(base, rx, &frame, now_ms, &sink, type);
+        answer(base, rx, frame, now_ms);
     }
     return results;
 }
@@ -837,6 +864,40 @@ static bool dropped_after_reboot(ctrlbus_base_t *base)
     return true;
 }
 
+#if CTRLBUS_DECODER_FAST
+/* Pushes the *run ring bytes from rx_tail on, one push() each (its inline path), up to the first
+ * result, which it returns (NONE: none), and sets *run to the bytes it took. Out of line: its
+ * locals are not on the stack while the answers are written. */
+static NOINLINE ctrlbus_rx_t push_run(ctrlbus_base_t *base, size_t *run, uint32_t now_ms,
+                                      ctrlbus_frame_t *frame)
+{
+    const uint8_t *bytes = base->config->rx_ring + base->rx_tail;
+    ctrlbus_rx_t rx = CTRLBUS_RX_NONE;
+    size_t taken = 0;
+    while (taken < *run && (rx = ctrlbus_decoder_push(&base->decoder, bytes[taken], now_ms,
+                                                      frame)) == CTRLBUS_RX_NONE) {
+        taken++;
+    }
+    if (rx != CTRLBUS_RX_NONE && rx != CTRLBUS_RX_BUSY) {
+        taken++; /* the byte that completed the result was taken too */
+    }
+    *run = taken;
+    return rx;
+}
+
+/* The same through one take(), which hands a whole frame out in place, its payload still in the
+ * ring; its own frame is small, since take's path is poll's deepest. */
+static NOINLINE ctrlbus_rx_t take_run(ctrlbus_base_t *base, size_t *run, uint32_t now_ms,
+                                      ctrlbus_frame_t *frame)
+{
+    const uint8_t *at = base->config->rx_ring + base->rx_tail;
+    size_t left = *run;
+    ctrlbus_rx_t rx = ctrlbus_decoder_take(&base->decoder, &at, &left, now_ms, frame);
+    *run -= left;
+    return rx;
+}
+#endif
+
 void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
 {
     if (base == NULL || base->config == NULL) {
@@ -848,50 +909,47 @@ void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
     uint16_t head = base->rx_head;
     CTRLBUS_RING_FENCE(); /* the bytes up to head are read only after head is */
     uint16_t tail = base->rx_tail;
-    while (tail != head) {
-        uint16_t end = head > tail ? head : config->rx_ring_size;
-        const uint8_t *bytes = config->rx_ring + tail;
-        size_t run = (size_t)(end - tail);
+    ctrlbus_frame_t frame;
+    bool ticked = false;
+    do {
+        ctrlbus_rx_t rx;
         size_t used = 0;
-        ctrlbus_rx_t rx = CTRLBUS_RX_NONE;
-        ctrlbus_frame_t frame;
-        if (run < PUSH_BELOW) {
-            /* A few bytes: one push each (its inline path), until one completes a result. */
-            while (used < run &&
-                   (rx = ctrlbus_decoder_push(&base->decoder, bytes[used], now_ms, &frame)) ==
-                       CTRLBUS_RX_NONE) {
-                used++;
-            }
-            if (rx != CTRLBUS_RX_NONE && rx != CTRLBUS_RX_BUSY) {
-                used++; /* the byte that completed the result was taken too */
-            }
+        if (tail == head) {
+            /* The ring is done: the inter-byte timeout, then whatever it leaves to answer. */
+            ctrlbus_decoder_tick(&base->decoder, now_ms);
+            ticked = true;
+            rx = CTRLBUS_RX_BUSY; /* drain: the decoder's own results */
         } else {
-            /* More: take() up to the first result; a whole frame in the run is handed out in
-             * place, its payload still in the ring. */
-            const uint8_t *at = bytes;
-            size_t left = run;
-            rx = ctrlbus_decoder_take(&base->decoder, &at, &left, now_ms, &frame);
-            used = run - left;
+#if CTRLBUS_DECODER_FAST == 0
+            /* Without the bulk path, one push per byte (BUSY: results were waiting; the byte is
+             * pushed again after them). */
+            rx = ctrlbus_decoder_push(&base->decoder, config->rx_ring[tail], now_ms, &frame);
+            used = rx != CTRLBUS_RX_BUSY;
+#else
+            /* A run shorter than PUSH_BELOW byte by byte, a longer one through take() (both
+             * from tail, which is rx_tail). */
+            used = (size_t)((head > tail ? head : config->rx_ring_size) - tail);
+            rx = used < PUSH_BELOW ? push_run(base, &used, now_ms, &frame)
+                                   : take_run(base, &used, now_ms, &frame);
+#endif
         }
-        /* NONE from push or take means nothing waits. The result is answered before its bytes'
-         * slots are released, since a frame taken in place still lies in them. */
+        /* A result is answered before its bytes' slots are released, since a frame taken in
+         * place still lies in them. */
         unsigned results = rx == CTRLBUS_RX_NONE ? 0u : drain(base, now_ms, rx, &frame);
-        tail = (uint16_t)(tail + used);
-        if (tail == config->rx_ring_size) {
-            tail = 0;
+        if (used != 0u) {
+            tail = (uint16_t)(tail + used);
+            if (tail == config->rx_ring_size) {
+                tail = 0;
+            }
+            CTRLBUS_RING_FENCE(); /* done with those bytes before feed may reuse their slots */
+            base->rx_tail = tail;
+        } else if (results == 0u) {
+            head = tail; /* cannot happen with a valid decoder; never spin */
         }
-        CTRLBUS_RING_FENCE(); /* done with those bytes before feed may reuse their slots */
-        base->rx_tail = tail;
         if (dropped_after_reboot(base)) {
             return;
         }
-        if (used == 0u && results == 0u) {
-            break; /* cannot happen with a valid decoder; never spin */
-        }
-    }
-    ctrlbus_decoder_tick(&base->decoder, now_ms);
-    (void)drain(base, now_ms, CTRLBUS_RX_NONE, NULL);
-    (void)dropped_after_reboot(base);
+    } while (!ticked);
 }
 
 /* Whether config asks for a feature that this build compiled out (ctrlbus/ctrlbus_config.h). */

@@ -97,18 +97,33 @@ typedef struct {
 extern const ctrlbus_codec_request_layout_t ctrlbus_codec_request_layouts[CTRLBUS_CODEC_REQUEST_LAYOUTS]
     CODEC_ROM;
 
+/* ---- the sink's unchecked core (frame.c) ------------------------------------------------------ */
+
+/* What the public ctrlbus_sink_begin/_put/_end do once their arguments are checked; the base stack
+ * calls them directly, since its answers are right by construction. */
+
+/* Starts a frame of payload_len bytes (at most 65534, and 254 unless is_long): writes its header. */
+void ctrlbus_sink_start(ctrlbus_sink_t *sink, uint8_t cmd, size_t payload_len, bool is_long);
+
+/* Payload bytes, counted off the announced length (more than announced fails the frame with
+ * CTRLBUS_ERR_LENGTH and writes nothing). data must not be NULL when len > 0. */
+void ctrlbus_sink_emit(ctrlbus_sink_t *sink, const uint8_t *data, size_t len);
+
+/* Writes the checksum unless an error came first (fewer bytes than announced: LENGTH). Returns
+ * the frame's status: CTRLBUS_OK or its first error. */
+int32_t ctrlbus_sink_finish(ctrlbus_sink_t *sink);
+
 /* ---- writing answers: what messages.c shares with the base stack --------------------------- */
 
 /* An answer layout: its fields in wire order, each read from the answer struct at `offset`:
  * a table walked by one writer (ctrlbus_codec_put_fields) instead of one function per layout. */
-typedef enum {             /* the integer kinds first: kind <= FIELD_U32 is "an integer run" */
-    FIELD_END,          /* the table's end */
-    FIELD_U8,           /* `count` uint8_t (or bool) values */
-    FIELD_U16,          /* `count` uint16_t values, little-endian */
-    FIELD_U32,          /* `count` uint32_t or int32_t values, little-endian (two's complement) */
-    FIELD_TEXT,         /* a char array: its text up to the NUL, zero-padded to `count` bytes */
-    FIELD_BYTES,        /* a `const uint8_t *`: the rest of the payload, whatever its length */
-    FIELD_POLL_COMMAND, /* a bool has_command then the command byte: the command or 0xFF */
+typedef enum {    /* an integer kind is its width in bytes */
+    FIELD_END = 0, /* the table's end */
+    FIELD_U8 = 1,  /* `count` uint8_t (or bool) values */
+    FIELD_U16 = 2, /* `count` uint16_t values, little-endian */
+    FIELD_TEXT = 3, /* a char array: its text up to the NUL, zero-padded to `count` bytes */
+    FIELD_U32 = 4, /* `count` uint32_t or int32_t values, little-endian (two's complement) */
+    FIELD_BYTES = 5 /* a `const uint8_t *`: the rest of the payload, whatever its length */
 } ctrlbus_codec_field_kind_t;
 
 typedef struct {
@@ -119,14 +134,14 @@ typedef struct {
 
 typedef const ctrlbus_codec_field_t *ctrlbus_codec_layout_t;
 
-/* Writes `size` payload bytes of an answer struct through its layout; the struct has been
- * checked (its _size gave `size`), and the size ends the walk (optional tail fields, the short
- * bumper form). */
+/* Writes `size` payload bytes of an answer struct through its layout (NULL: the struct's first
+ * `size` bytes as they are, a byte array); the struct has been checked (its _size gave `size`),
+ * and the size ends the walk (optional tail fields, the short bumper form). */
 void ctrlbus_codec_put_fields(ctrlbus_sink_t *sink, ctrlbus_codec_layout_t layout,
                               const void *answer, size_t size);
 
 /* An OK answer frame of `size` payload bytes (a negative size is a check's error, returned
- * before anything is written), its fields through layout (NULL: an empty payload), its checksum.
+ * before anything is written), its payload as ctrlbus_codec_put_fields() writes it, its checksum.
  * Returns the frame's size or a negative error. */
 int32_t ctrlbus_codec_write_ok(ctrlbus_sink_t *sink, int32_t size, ctrlbus_codec_layout_t layout,
                                const void *answer, ctrlbus_frame_type_t type);
@@ -134,14 +149,12 @@ int32_t ctrlbus_codec_write_ok(ctrlbus_sink_t *sink, int32_t size, ctrlbus_codec
 /* Each answer's layout (messages.c). */
 extern const ctrlbus_codec_field_t ctrlbus_codec_connect_base_layout[] CODEC_ROM;
 extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_conf_layout[] CODEC_ROM;
-extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_conf_adv_layout[] CODEC_ROM;
 extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_status_layout[] CODEC_ROM;
 extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_motor_data_layout[] CODEC_ROM;
 extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_sensor_data_layout[] CODEC_ROM;
 extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_bumper_data_layout[] CODEC_ROM;
 extern const ctrlbus_codec_field_t ctrlbus_codec_get_charger_data_layout[] CODEC_ROM;
 extern const ctrlbus_codec_field_t ctrlbus_codec_set_v_and_get_deadreckon_layout[] CODEC_ROM;
-extern const ctrlbus_codec_field_t ctrlbus_codec_poll_base_cmd_layout[] CODEC_ROM;
 extern const ctrlbus_codec_field_t ctrlbus_codec_health_get_health_layout[] CODEC_ROM;
 extern const ctrlbus_codec_field_t ctrlbus_codec_health_get_error_layout[] CODEC_ROM;
 

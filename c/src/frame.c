@@ -4,6 +4,8 @@
 
 #include <string.h>
 
+#include "codec.h"
+
 /* ---- shared --------------------------------------------------------------------------------- */
 
 /* Lives here because the frame layer is the lowest one every program links. */
@@ -69,7 +71,7 @@ int32_t ctrlbus_sink_init(ctrlbus_sink_t *sink, ctrlbus_write_fn write, void *co
 }
 
 /* Sends bytes that belong to the frame (everything but the checksum) and folds them into it. */
-static void sink_emit(ctrlbus_sink_t *sink, const uint8_t *data, size_t len)
+static void sink_out(ctrlbus_sink_t *sink, const uint8_t *data, size_t len)
 {
     if (sink->status != CTRLBUS_OK || len == 0) {
         return;
@@ -82,6 +84,46 @@ static void sink_emit(ctrlbus_sink_t *sink, const uint8_t *data, size_t len)
     sink->checksum = xor_bytes(sink->checksum, data, len);
 }
 
+/* The sink's unchecked core (codec.h): the public functions below check, then call these; the
+ * base stack, whose answers are right by construction, calls them directly. */
+
+void ctrlbus_sink_start(ctrlbus_sink_t *sink, uint8_t cmd, size_t payload_len, bool is_long)
+{
+    uint32_t len_field = (uint32_t)payload_len + 1u; /* payload_len <= 65534: exact below */
+    uint8_t header[4] = {is_long ? CTRLBUS_FLAG_LONG : CTRLBUS_FLAG_STANDARD, (uint8_t)len_field,
+                         (uint8_t)(len_field >> 8), cmd};
+    size_t header_len = is_long ? 4u : 3u;
+    header[header_len - 1u] = cmd; /* a standard frame has one length byte */
+    sink->status = CTRLBUS_OK;
+    sink->checksum = 0;
+    sink->frame_len = (uint32_t)(payload_len + header_len + 1u);
+    sink->remaining = (uint16_t)payload_len;
+    sink->in_frame = 1;
+    sink_out(sink, header, header_len);
+}
+
+void ctrlbus_sink_emit(ctrlbus_sink_t *sink, const uint8_t *data, size_t len)
+{
+    if (len > sink->remaining) { /* remaining is 0 outside a frame */
+        ctrlbus_sink_fail(sink, CTRLBUS_ERR_LENGTH); /* so sink_out writes nothing */
+    } else {
+        sink->remaining = (uint16_t)(sink->remaining - len);
+    }
+    sink_out(sink, data, len); /* a tail call: no frame of ours while write runs */
+}
+
+int32_t ctrlbus_sink_finish(ctrlbus_sink_t *sink)
+{
+    if (sink->remaining != 0u) {
+        ctrlbus_sink_fail(sink, CTRLBUS_ERR_LENGTH);
+    }
+    sink->in_frame = 0;
+    sink->remaining = 0;
+    uint8_t checksum = sink->checksum;
+    sink_out(sink, &checksum, 1);
+    return sink->status;
+}
+
 int32_t ctrlbus_sink_begin(ctrlbus_sink_t *sink, uint8_t cmd, size_t payload_len,
                            ctrlbus_frame_type_t type)
 {
@@ -89,35 +131,15 @@ int32_t ctrlbus_sink_begin(ctrlbus_sink_t *sink, uint8_t cmd, size_t payload_len
         return CTRLBUS_ERR_ARGUMENT;
     }
     sink->in_frame = 0;
+    sink->remaining = 0;
     int32_t frame_len = ctrlbus_frame_size(payload_len, type);
     if (frame_len < 0) {
         sink->status = frame_len;
         return frame_len;
     }
-    /* From here payload_len <= 65534, so the narrowing casts below are exact. */
-    uint8_t header[4];
-    size_t header_len;
-    uint32_t len_field = (uint32_t)payload_len + 1u;
     bool is_long = type == CTRLBUS_FRAME_LONG ||
                    (type == CTRLBUS_FRAME_AUTO && payload_len > CTRLBUS_STANDARD_PAYLOAD_MAX);
-    if (!is_long) {
-        header[0] = CTRLBUS_FLAG_STANDARD;
-        header[1] = (uint8_t)len_field;
-        header[2] = cmd;
-        header_len = 3;
-    } else {
-        header[0] = CTRLBUS_FLAG_LONG;
-        header[1] = (uint8_t)(len_field & 0xFFu);
-        header[2] = (uint8_t)(len_field >> 8);
-        header[3] = cmd;
-        header_len = 4;
-    }
-    sink->status = CTRLBUS_OK;
-    sink->checksum = 0;
-    sink->frame_len = (uint32_t)frame_len;
-    sink->remaining = (uint32_t)payload_len;
-    sink->in_frame = 1;
-    sink_emit(sink, header, header_len);
+    ctrlbus_sink_start(sink, cmd, payload_len, is_long);
     return sink->status;
 }
 
@@ -133,12 +155,11 @@ void ctrlbus_sink_put(ctrlbus_sink_t *sink, const uint8_t *data, size_t len)
     if (sink == NULL || len == 0) {
         return;
     }
-    if (!sink->in_frame || len > sink->remaining || data == NULL) {
-        ctrlbus_sink_fail(sink, data == NULL ? CTRLBUS_ERR_ARGUMENT : CTRLBUS_ERR_LENGTH);
+    if (data == NULL) {
+        ctrlbus_sink_fail(sink, CTRLBUS_ERR_ARGUMENT);
         return;
     }
-    sink->remaining -= (uint32_t)len;
-    sink_emit(sink, data, len);
+    ctrlbus_sink_emit(sink, data, len);
 }
 
 void ctrlbus_sink_put_u8(ctrlbus_sink_t *sink, uint8_t value)
@@ -187,21 +208,10 @@ int32_t ctrlbus_sink_end(ctrlbus_sink_t *sink)
         return CTRLBUS_ERR_ARGUMENT;
     }
     if (!sink->in_frame) {
-        ctrlbus_sink_fail(sink, CTRLBUS_ERR_LENGTH);
-    } else if (sink->remaining != 0) {
-        ctrlbus_sink_fail(sink, CTRLBUS_ERR_LENGTH);
+        ctrlbus_sink_fail(sink, CTRLBUS_ERR_LENGTH); /* no checksum is written then */
     }
-    sink->in_frame = 0;
-    if (sink->status != CTRLBUS_OK) {
-        return sink->status;
-    }
-    uint8_t checksum = sink->checksum;
-    int32_t result = sink->write(sink->context, &checksum, 1);
-    if (result < 0) {
-        sink->status = result;
-        return result;
-    }
-    return (int32_t)sink->frame_len;
+    int32_t result = ctrlbus_sink_finish(sink);
+    return result < 0 ? result : (int32_t)sink->frame_len;
 }
 
 int32_t ctrlbus_buffer_write(void *context, const uint8_t *data, size_t len)

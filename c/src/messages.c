@@ -30,11 +30,6 @@ typedef char runs_are_contiguous
          ? 1
          : -1];
 
-/* POLL_BASE_CMD's command byte follows has_command (FIELD_POLL_COMMAND reads both). */
-typedef char command_follows_flag[offsetof(ctrlbus_poll_base_cmd_answer_t, command) ==
-                                          offsetof(ctrlbus_poll_base_cmd_answer_t, has_command) + 1u
-                                      ? 1
-                                      : -1];
 /* Every field offset of a layout fits a byte (the largest: GET_BASE_CONF's bumpers). */
 typedef char offsets_fit_a_byte[offsetof(ctrlbus_get_base_conf_answer_t, bumpers) < 256u ? 1 : -1];
 
@@ -209,47 +204,52 @@ int32_t ctrlbus_request_decode(ctrlbus_request_t *out, uint8_t cmd, const uint8_
 /* ---- answers: one encoder per layout -------------------------------------------------------- */
 
 /* The one field writer: walks a layout's fields until `size` bytes are out (the size, checked
- * before, decides the optional tail fields and the short bumper form). Each value is read from
- * the struct at the field's offset with the field's own type, and goes out through one call;
- * text goes byte by byte (zeros after its NUL), so no deeper writer is on the stack. */
+ * before, decides the optional tail fields and the short bumper form). A run of integers goes
+ * out straight from the struct where the host is little-endian (one write call), value by value
+ * elsewhere; text goes byte by byte (zeros after its NUL), so no deeper writer is on the stack. */
 void ctrlbus_codec_put_fields(ctrlbus_sink_t *sink, ctrlbus_codec_layout_t layout,
                               const void *answer, size_t size)
 {
+    if (layout == NULL) {
+        ctrlbus_sink_emit(sink, answer, size);
+        return;
+    }
     for (uint8_t kind; size > 0u && (kind = CODEC_ROM_BYTE(&layout->kind)) != FIELD_END;
          layout++) {
         const uint8_t *at = (const uint8_t *)answer + CODEC_ROM_BYTE(&layout->offset);
+        size_t count = CODEC_ROM_BYTE(&layout->count);
         if (kind == FIELD_BYTES) {
-            ctrlbus_sink_put(sink, *(const uint8_t *const *)(const void *)at, size);
+            ctrlbus_sink_emit(sink, *(const uint8_t *const *)(const void *)at, size);
             return; /* the rest of the payload */
         }
-        size_t width = kind == FIELD_U32 ? 4u : kind == FIELD_U16 ? 2u : 1u;
 #if CODEC_HOST_LITTLE_ENDIAN
-        if (kind <= FIELD_U32) {
+        if (kind != FIELD_TEXT) {
             /* The run of integers is already in wire order in memory: one call for all. */
-            size_t run = CODEC_ROM_BYTE(&layout->count) * width;
-            run = run < size ? run : size;
-            ctrlbus_sink_put(sink, at, run);
+            size_t run = count * kind < size ? count * kind : size;
+            ctrlbus_sink_emit(sink, at, run);
             size -= run;
             continue;
         }
-#endif
+        for (uint8_t byte = 1; count > 0u && size > 0u; count--, size--, at++) {
+            byte = byte != 0u ? *at : 0u; /* zeros after the text's NUL */
+            ctrlbus_sink_emit(sink, &byte, 1);
+        }
+#else
+        size_t width = kind == FIELD_TEXT ? 1u : kind;
         bool text_ended = false;
-        for (size_t count = CODEC_ROM_BYTE(&layout->count); count > 0u && size > 0u; count--, at += width) {
+        for (; count > 0u && size > 0u; count--, at += width) {
             uint32_t value = width == 4u   ? *(const uint32_t *)(const void *)at
                              : width == 2u ? *(const uint16_t *)(const void *)at
                                            : at[0];
-            if (kind == FIELD_TEXT) {
-                text_ended = text_ended || value == 0u;
-                value = text_ended ? 0u : value;
-            } else if (kind == FIELD_POLL_COMMAND) { /* has_command, then the command */
-                value = value != 0u ? at[1] : CTRLBUS_POLL_NOTHING_PENDING;
-            }
+            text_ended = text_ended || (kind == FIELD_TEXT && value == 0u);
+            value = text_ended ? 0u : value; /* zeros after the text's NUL */
             uint8_t bytes[4] = {(uint8_t)(value & 0xFFu), (uint8_t)((value >> 8) & 0xFFu),
                                 (uint8_t)((value >> 16) & 0xFFu), (uint8_t)(value >> 24)};
             size_t piece = width < size ? width : size; /* an answer may end inside a word */
-            ctrlbus_sink_put(sink, bytes, piece);
+            ctrlbus_sink_emit(sink, bytes, piece);
             size -= piece;
         }
+#endif
     }
 }
 
@@ -263,9 +263,7 @@ int32_t ctrlbus_codec_write_ok(ctrlbus_sink_t *sink, int32_t size, ctrlbus_codec
     if (result < 0) {
         return result;
     }
-    if (layout != NULL) {
-        ctrlbus_codec_put_fields(sink, layout, answer, (size_t)size);
-    }
+    ctrlbus_codec_put_fields(sink, layout, answer, (size_t)size);
     return ctrlbus_sink_end(sink);
 }
 
@@ -372,7 +370,7 @@ static int32_t get_base_conf_adv_size(const ctrlbus_get_base_conf_adv_answer_t *
     return a != NULL ? bytes_size(a->blob, a->blob_len) : CTRLBUS_ERR_ARGUMENT;
 }
 
-const ctrlbus_codec_field_t ctrlbus_codec_get_base_conf_adv_layout[] CODEC_ROM = {
+static const ctrlbus_codec_field_t get_base_conf_adv_layout[] CODEC_ROM = {
     {FIELD_BYTES, 0, (uint8_t)offsetof(ctrlbus_get_base_conf_adv_answer_t, blob)},
     {FIELD_END, 0, 0},
 };
@@ -380,7 +378,7 @@ const ctrlbus_codec_field_t ctrlbus_codec_get_base_conf_adv_layout[] CODEC_ROM =
 void ctrlbus_get_base_conf_adv_answer_put(ctrlbus_sink_t *sink,
                                           const ctrlbus_get_base_conf_adv_answer_t *a)
 {
-    put_checked(sink, get_base_conf_adv_size(a), ctrlbus_codec_get_base_conf_adv_layout, a);
+    put_checked(sink, get_base_conf_adv_size(a), get_base_conf_adv_layout, a);
 }
 
 int32_t ctrlbus_get_base_conf_adv_answer_write(ctrlbus_sink_t *sink,
@@ -388,7 +386,7 @@ int32_t ctrlbus_get_base_conf_adv_answer_write(ctrlbus_sink_t *sink,
                                                ctrlbus_frame_type_t type)
 {
     return ctrlbus_codec_write_ok(sink, get_base_conf_adv_size(a),
-                                  ctrlbus_codec_get_base_conf_adv_layout, a, type);
+                                  get_base_conf_adv_layout, a, type);
 }
 
 /* GET_BASE_STATUS */
@@ -578,24 +576,28 @@ int32_t ctrlbus_poll_base_cmd_answer_size(const ctrlbus_poll_base_cmd_answer_t *
     return CTRLBUS_POLL_BASE_CMD_ANSWER_SIZE;
 }
 
-const ctrlbus_codec_field_t ctrlbus_codec_poll_base_cmd_layout[] CODEC_ROM = {
-    /* payload_size 0: the size ends the walk at once */
-    {FIELD_POLL_COMMAND, 1, (uint8_t)offsetof(ctrlbus_poll_base_cmd_answer_t, has_command)},
-    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_poll_base_cmd_answer_t, pad)},
-    {FIELD_END, 0, 0},
-};
+/* The wire bytes of a checked POLL_BASE_CMD answer: the command or 0xFF, then the pad. Returns
+ * the answer's size as ctrlbus_poll_base_cmd_answer_size(). */
+static int32_t poll_base_cmd_bytes(const ctrlbus_poll_base_cmd_answer_t *a, uint8_t bytes[2])
+{
+    int32_t size = ctrlbus_poll_base_cmd_answer_size(a);
+    bytes[0] = size > 0 && a->has_command ? a->command : CTRLBUS_POLL_NOTHING_PENDING;
+    bytes[1] = size > 0 ? a->pad : 0u;
+    return size;
+}
 
 void ctrlbus_poll_base_cmd_answer_put(ctrlbus_sink_t *sink, const ctrlbus_poll_base_cmd_answer_t *a)
 {
-    put_checked(sink, ctrlbus_poll_base_cmd_answer_size(a), ctrlbus_codec_poll_base_cmd_layout, a);
+    uint8_t bytes[2];
+    put_checked(sink, poll_base_cmd_bytes(a, bytes), NULL, bytes);
 }
 
 int32_t ctrlbus_poll_base_cmd_answer_write(ctrlbus_sink_t *sink,
                                            const ctrlbus_poll_base_cmd_answer_t *a,
                                            ctrlbus_frame_type_t type)
 {
-    return ctrlbus_codec_write_ok(sink, ctrlbus_poll_base_cmd_answer_size(a),
-                                  ctrlbus_codec_poll_base_cmd_layout, a, type);
+    uint8_t bytes[2];
+    return ctrlbus_codec_write_ok(sink, poll_base_cmd_bytes(a, bytes), NULL, bytes, type);
 }
 
 /* HEALTH_GET_HEALTH */
@@ -701,7 +703,7 @@ static int32_t ok_layout(const ctrlbus_answer_t *a, ctrlbus_codec_layout_t *layo
         *layout = ctrlbus_codec_get_base_conf_layout;
         return ctrlbus_get_base_conf_answer_size(&a->as.get_base_conf);
     case CTRLBUS_REQ_GET_BASE_CONF_ADV:
-        *layout = ctrlbus_codec_get_base_conf_adv_layout;
+        *layout = get_base_conf_adv_layout;
         return get_base_conf_adv_size(&a->as.get_base_conf_adv);
     case CTRLBUS_REQ_GET_BASE_STATUS:
         *layout = ctrlbus_codec_get_base_status_layout;
@@ -721,8 +723,7 @@ static int32_t ok_layout(const ctrlbus_answer_t *a, ctrlbus_codec_layout_t *layo
     case CTRLBUS_REQ_SET_V_AND_GET_DEADRECKON:
         *layout = ctrlbus_codec_set_v_and_get_deadreckon_layout;
         return ctrlbus_set_v_and_get_deadreckon_answer_size(&a->as.set_v_and_get_deadreckon);
-    case CTRLBUS_REQ_POLL_BASE_CMD:
-        *layout = ctrlbus_codec_poll_base_cmd_layout;
+    case CTRLBUS_REQ_POLL_BASE_CMD: /* written by ctrlbus_poll_base_cmd_answer_put() */
         return ctrlbus_poll_base_cmd_answer_size(&a->as.poll_base_cmd);
     case CTRLBUS_REQ_HEALTH_GET_HEALTH:
         *layout = ctrlbus_codec_health_get_health_layout;
@@ -777,7 +778,9 @@ int32_t ctrlbus_answer_write(ctrlbus_sink_t *sink, const ctrlbus_answer_t *answe
     }
     switch (answer->kind) {
     case CTRLBUS_ANSWER_OK:
-        if (layout != NULL) {
+        if (answer->to == CTRLBUS_REQ_POLL_BASE_CMD) {
+            ctrlbus_poll_base_cmd_answer_put(sink, &answer->as.poll_base_cmd);
+        } else if (layout != NULL) {
             ctrlbus_codec_put_fields(sink, layout, &answer->as, (size_t)size);
         }
         break;

@@ -27,8 +27,8 @@
  * field by field, straight from the application's answer struct or, for GET_BASE_CONF_ADV, from
  * the caller's constant blob. There is NO transmit buffer, and no path needs one: SYNC and ECHO
  * answers are written from the decoder's frame buffer, where the request still is. The write
- * callback receives pieces (a header, a field, a run of integer fields straight from the answer
- * struct) and must take all of them: a blocking UART write (wait for room in the transmit
+ * callback receives pieces (a header, a run of integer fields straight from the answer struct,
+ * a text field one byte at a time, the checksum) and must take all of them: a blocking UART write (wait for room in the transmit
  * register) is the simplest. Note that a blocking write holds
  * the main loop for the answer's time on the wire (23 ms for GET_BASE_CONF at 115200 baud);
  * received bytes keep arriving in the ring meanwhile, which must be large enough for them (a Core
@@ -75,10 +75,13 @@
  *
  * Footprint: ctrlbus_base_t is 64 bytes on a 32-bit MCU (scripts/size.sh prints it), besides the
  * caller's rx_ring, frame_buffer and the optional health and command storage. ctrlbus_base_poll()
- * needs at most about 600 bytes of C stack on a Cortex-M (`make size` prints the worst case per
- * target, from -fstack-usage along the call graph) plus what the handlers and write use; most of
- * it is the answer struct of the request being answered, up to GET_BASE_CONF's 272 bytes, which
- * lives there while it is written. Features can be compiled out (ctrlbus/ctrlbus_config.h).
+ * needs at most about 310 bytes of C stack on a Cortex-M0+ at -Os in the default configuration
+ * (`make size` prints the worst case per target, from -fstack-usage along the call graph; the
+ * deepest path is the decoder's take()), plus what the handlers and write use. Of that, answering one
+ * request takes 256 bytes, poll included: the storage of the answer a handler fills (64
+ * bytes, GET_BASE_SENSOR_DATA's, the largest; GET_BASE_CONF and the 0x21 blob are written from
+ * the application's storage) and the frame writer, only while that answer is written. Features
+ * can be compiled out (ctrlbus/ctrlbus_config.h).
  *
  * Behaviour: what the stack does by itself (docs/protocol.md has the wire rules it follows):
  *  1. Order. ctrlbus_base_poll() runs the motor watchdog (6), then takes the bytes that were in
@@ -353,7 +356,8 @@ int32_t ctrlbus_base_init(ctrlbus_base_t *base, const ctrlbus_base_config_t *con
  * data (returns 0).
  * ISR-safe: once ctrlbus_base_init() has returned, it may interrupt any other function of this
  * header on the same instance, as long as only one context feeds a given instance (single
- * producer). Cost: O(len) byte copies and one fence; no call, no loop over anything else. */
+ * producer). Cost: O(len) byte copies and one fence; no call, no loop over anything else.
+ * Stack: 32 bytes on a Cortex-M0+ at -Os (all of it in the interrupt's frame). */
 size_t ctrlbus_base_feed(ctrlbus_base_t *base, const uint8_t *data, size_t len);
 
 /* The main loop's work, at time now_ms: runs the motor watchdog (stopping the wheels through
@@ -365,10 +369,14 @@ size_t ctrlbus_base_feed(ctrlbus_base_t *base, const uint8_t *data, size_t len);
  * in the handlers' calls and in ctrlbus_base_counters(). A write callback that fails cuts that
  * answer short; the stack carries on with the next.
  * Not ISR-safe (main loop only). Cost: the decoder's cost for the bytes taken (O(1) per byte on a
- * clean link; frame.h gives the worst case: a run of fewer than 16 bytes in the ring goes through
- * ctrlbus_decoder_push() one byte at a time, a longer one through one ctrlbus_decoder_feed(),
- * whichever costs less), plus for each request its handler and the answer's
- * size in byte visits (a few write calls per field); no work beyond the ring's content at entry. */
+ * clean link; frame.h gives the worst case: with the decoder's bulk path (CTRLBUS_DECODER_FAST 1
+ * or 2) a run of fewer than 16 bytes in the ring goes through ctrlbus_decoder_push() one byte at
+ * a time and a longer one through ctrlbus_decoder_take(), whichever costs less; without it every
+ * byte is pushed, and its ring slot released right after, or after the answers it completes),
+ * plus for each request one look-up in the request table (17 rows), its handler, and the
+ * answer's size in byte visits (one write call per run of integer fields, per text byte, and for
+ * the header and the checksum); no work beyond the ring's content at entry. Stack: see
+ * "Footprint" above (about 310 bytes on a Cortex-M0+, plus the handlers' and write's). */
 void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms);
 
 /* A new line: the host connected a new peer (a new TCP connection, a re-plugged cable), so the

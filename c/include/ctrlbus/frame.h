@@ -72,9 +72,9 @@ typedef int32_t (*ctrlbus_write_fn)(void *context, const uint8_t *data, size_t l
 typedef struct {
     ctrlbus_write_fn write;
     void *context;
-    uint32_t remaining; /* payload bytes still to come in the current frame */
     uint32_t frame_len; /* whole size of the current frame */
     int32_t status;     /* the first error, sticky until the next ctrlbus_sink_begin() */
+    uint16_t remaining; /* payload bytes still to come in the current frame (at most 65534) */
     uint8_t checksum;   /* XOR of everything written in the current frame */
     uint8_t in_frame;
 } ctrlbus_sink_t;

@@ -12,8 +12,9 @@
  *   ctrlbus_request_t (what a base switches on); ctrlbus_answer_decode() reads an answer knowing
  *   the request it answers; ctrlbus_request_write() / ctrlbus_answer_write() write whole frames;
  * - one codec per answer layout (ctrlbus_<name>_answer_write/_put/_decode), for a base that
- *   answers one request without building the (large) answer union: the base stack writes each
- *   answer with its layout's _write.
+ *   answers one request without building the (large) answer union. The base stack (base.h) uses
+ *   neither level's entry points: it reads a request's arguments straight from the payload and
+ *   writes each answer with the same layout tables as the _write functions.
  *
  * Two halves: a base decodes requests and encodes answers (src/messages.c); a master encodes
  * requests and decodes answers (src/messages_master.c, compiled and declared only with
