@@ -381,12 +381,14 @@ static bool clamp_to(int32_t *value, uint32_t limit)
     return true;
 }
 
-/* If the larger of |peak_a| and |peak_b| (wheel speeds, mm/s) exceeds limit (0: none), scales *a
- * and *b by limit / that peak, towards zero, so the path keeps its curvature (§9.2). Returns
- * whether it did. */
-static bool scale_to(int32_t *a, int32_t *b, int32_t peak_a, int32_t peak_b, uint16_t limit)
+/* If the larger of |peaks[0]| and |peaks[1]| (wheel speeds, mm/s) exceeds limit (0: none),
+ * scales *a and *b by limit / that peak, towards zero, so the path keeps its curvature (§9.2);
+ * peaks may be a and b themselves. Returns whether it did. */
+static bool scale_to(int32_t *a, int32_t *b, const int32_t peaks[2], uint16_t limit)
 {
-    uint32_t peak = magnitude(peak_a) > magnitude(peak_b) ? magnitude(peak_a) : magnitude(peak_b);
+    uint32_t peak_a = magnitude(peaks[0]);
+    uint32_t peak_b = magnitude(peaks[1]);
+    uint32_t peak = peak_a > peak_b ? peak_a : peak_b;
     if (limit == 0u || peak <= limit) {
         return false;
     }
@@ -432,31 +434,27 @@ static bool sdk2020(const ctrlbus_base_config_t *config)
 #endif
 }
 
-/* A request's 32-bit argument, read straight from the payload (at any alignment). */
-static int32_t argument_s32(const uint8_t *at)
-{
-    return codec_take_s32(&at);
-}
-
 /* SET_BASE_MOTOR (its arguments: four wheel speeds, the last two ignored): the wheel limit, then
- * the handler. Returns the handler's result. */
-static int32_t set_wheel_speeds(ctrlbus_base_t *base, const uint8_t *args)
+ * the handler, the speeds worked on in wheels (the answer storage: nothing on the stack).
+ * Returns the handler's result. */
+static int32_t set_wheel_speeds(ctrlbus_base_t *base, const uint8_t *args, int32_t wheels[2])
 {
     const ctrlbus_base_config_t *config = base->config;
-    int32_t left = argument_s32(args);
-    int32_t right = argument_s32(args + 4);
+    wheels[0] = codec_read_s32(args);
+    wheels[1] = codec_read_s32(args + 4);
     bool clamped = false;
 #if CTRLBUS_CONFIG_LIMITS
-    clamped = scale_to(&left, &right, left, right, config->limits.max_wheel_mm_s);
+    clamped = scale_to(&wheels[0], &wheels[1], wheels, config->limits.max_wheel_mm_s);
 #endif
-    note_motion(base, clamped, left != 0 || right != 0);
-    return config->set_wheel_speeds(config->context, left, right);
+    note_motion(base, clamped, wheels[0] != 0 || wheels[1] != 0);
+    return config->set_wheel_speeds(config->context, wheels[0], wheels[1]);
 }
 
 /* SET_V_AND_GET_DEADRECKON's part of the answer storage: the handler's input and its answer. */
 typedef struct {
     ctrlbus_set_v_and_get_deadreckon_answer_t answer; /* first: zeroed (ZEROED below) */
     ctrlbus_set_v_and_get_deadreckon_request_t velocity;
+    int32_t wheels[2]; /* the limits' wheel speeds: here, not on the stack (poll's deepest path) */
 } motion_storage_t;
 
 /* SET_V_AND_GET_DEADRECKON (its arguments: vx, vy, omega): the limits, the handler, then the
@@ -467,20 +465,19 @@ static int32_t set_velocity(ctrlbus_base_t *base, const uint8_t *args, motion_st
     const ctrlbus_base_config_t *config = base->config;
     ctrlbus_set_v_and_get_deadreckon_request_t *v = &motion->velocity;
     ctrlbus_set_v_and_get_deadreckon_answer_t *out = &motion->answer;
-    v->vx_mps_q16 = argument_s32(args);
-    v->vy_mps_q16 = argument_s32(args + 4);
-    v->omega_radps_q16 = argument_s32(args + 8);
+    v->vx_mps_q16 = codec_read_s32(args);
+    v->vy_mps_q16 = codec_read_s32(args + 4);
+    v->omega_radps_q16 = codec_read_s32(args + 8);
     bool clamped = false;
 #if CTRLBUS_CONFIG_LIMITS
     const ctrlbus_base_limits_t *limits = &config->limits;
     clamped = clamp_to(&v->vx_mps_q16, limits->max_vx_mps_q16);
     clamped = clamp_to(&v->omega_radps_q16, limits->max_omega_radps_q16) || clamped;
     if (limits->wheel_track_mm != 0u) {
-        int32_t left = 0;
-        int32_t right = 0;
+        int32_t *wheels = motion->wheels;
         ctrlbus_diffdrive_wheel_speeds(v->vx_mps_q16, v->omega_radps_q16, limits->wheel_track_mm,
-                                       &left, &right);
-        clamped = scale_to(&v->vx_mps_q16, &v->omega_radps_q16, left, right,
+                                       &wheels[0], &wheels[1]);
+        clamped = scale_to(&v->vx_mps_q16, &v->omega_radps_q16, wheels,
                            limits->max_wheel_mm_s) ||
                   clamped;
     }
@@ -705,7 +702,7 @@ static NOINLINE uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t
         break;
     case CTRLBUS_REQ_SET_BASE_MOTOR:
         if (config->set_wheel_speeds != NULL) {
-            result = set_wheel_speeds(base, args);
+            result = set_wheel_speeds(base, args, out->motion.wheels);
         }
         break;
     case CTRLBUS_REQ_SET_V_AND_GET_DEADRECKON:
@@ -756,7 +753,7 @@ static NOINLINE uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t
         break;
     case CTRLBUS_REQ_HEALTH_CLR_ERROR:
         /* Not registered (or no registry): 0x8002. */
-        result = ctrlbus_base_health_clear(base, (uint32_t)argument_s32(args)) > 0
+        result = ctrlbus_base_health_clear(base, (uint32_t)codec_read_s32(args)) > 0
                      ? CTRLBUS_OK
                      : CTRLBUS_ERR_ARGUMENT;
         break;
@@ -774,6 +771,21 @@ static NOINLINE uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t
     reply->size = size;
     reply->layout = layout;
     return 0;
+}
+
+/* Writes the frame of an answer: cmd, the reply's payload, the checksum (long if is_long or if
+ * the payload needs it). Out of line: the sink is on the stack only while the answer is written,
+ * not while a handler runs. */
+static NOINLINE void send(const ctrlbus_base_config_t *config, uint8_t cmd, bool is_long,
+                          const reply_t *reply)
+{
+    ctrlbus_sink_t sink;
+    sink.write = config->write; /* the rest is set by start */
+    sink.context = config->write_context;
+    size_t size = (size_t)reply->size;
+    ctrlbus_sink_start(&sink, cmd, size, is_long || size > CTRLBUS_STANDARD_PAYLOAD_MAX);
+    ctrlbus_codec_put_fields(&sink, reply->layout, reply->source, size);
+    (void)ctrlbus_sink_finish(&sink);
 }
 
 /* Writes the one answer to a decoder result: the ERROR for an event (nothing for a timeout),
@@ -813,16 +825,9 @@ static NOINLINE void answer(ctrlbus_base_t *base, ctrlbus_rx_t rx, const ctrlbus
         reply.size = CTRLBUS_ERROR_ANSWER_SIZE;
     }
     const ctrlbus_base_config_t *config = base->config;
-    ctrlbus_sink_t sink;
-    sink.write = config->write; /* the rest is set by start */
-    sink.context = config->write_context;
-    /* A copy keeps the request's flag; OK and ERROR are long unless standard_answers. (The
-     * reply is read where it is for each call: no copies of it on the stack.) */
-    bool is_long = cmd <= CTRLBUS_CMD_ECHO ? frame->is_long : !config->standard_answers;
-    ctrlbus_sink_start(&sink, cmd, (size_t)reply.size,
-                       is_long || (size_t)reply.size > CTRLBUS_STANDARD_PAYLOAD_MAX);
-    ctrlbus_codec_put_fields(&sink, reply.layout, reply.source, (size_t)reply.size);
-    (void)ctrlbus_sink_finish(&sink);
+    /* A copy keeps the request's flag; OK and ERROR are long unless standard_answers. */
+    send(config, cmd, cmd <= CTRLBUS_CMD_ECHO ? frame->is_long : !config->standard_answers,
+         &reply);
     /* A BASE_CMD answered OK: its sub-command's hook (run_request found it), the frame being
      * still where the decoder or the ring holds it. */
     if (cmd == CTRLBUS_CMD_OK && frame->cmd == CTRLBUS_CMD_BASE_CMD) {

@@ -40,23 +40,36 @@ static inline uint16_t codec_take_u16(const uint8_t **p)
     return value;
 }
 
-static inline uint32_t codec_take_u32(const uint8_t **p)
+/* A little-endian 32-bit word at b (any alignment). */
+static inline uint32_t codec_read_u32(const uint8_t *b)
 {
-    const uint8_t *b = *p;
-    uint32_t value = (uint32_t)b[0] | ((uint32_t)b[1] << 8) | ((uint32_t)b[2] << 16) |
-                     ((uint32_t)b[3] << 24);
-    *p += 4;
-    return value;
+    return (uint32_t)b[0] | ((uint32_t)b[1] << 8) | ((uint32_t)b[2] << 16) |
+           ((uint32_t)b[3] << 24);
 }
 
-/* Two's complement without relying on implementation-defined conversions. */
-static inline int32_t codec_take_s32(const uint8_t **p)
+/* The same as a signed word: two's complement without relying on implementation-defined
+ * conversions. No pointer to a pointer: the base stack's callers keep nothing on the stack. */
+static inline int32_t codec_read_s32(const uint8_t *b)
 {
-    uint32_t value = codec_take_u32(p);
+    uint32_t value = codec_read_u32(b);
     if (value <= 0x7FFFFFFFu) {
         return (int32_t)value;
     }
     return (int32_t)(value - 0x80000000u) - INT32_MAX - 1;
+}
+
+static inline uint32_t codec_take_u32(const uint8_t **p)
+{
+    uint32_t value = codec_read_u32(*p);
+    *p += 4;
+    return value;
+}
+
+static inline int32_t codec_take_s32(const uint8_t **p)
+{
+    int32_t value = codec_read_s32(*p);
+    *p += 4;
+    return value;
 }
 
 /* ---- argument values the protocol defines (others: well-formed but unsupported, 0x8000) ---- */

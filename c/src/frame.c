@@ -70,22 +70,10 @@ int32_t ctrlbus_sink_init(ctrlbus_sink_t *sink, ctrlbus_write_fn write, void *co
     return CTRLBUS_OK;
 }
 
-/* Sends bytes that belong to the frame (everything but the checksum) and folds them into it. */
-static void sink_out(ctrlbus_sink_t *sink, const uint8_t *data, size_t len)
-{
-    if (sink->status != CTRLBUS_OK || len == 0) {
-        return;
-    }
-    int32_t result = sink->write(sink->context, data, len);
-    if (result < 0) {
-        sink->status = result;
-        return;
-    }
-    sink->checksum = xor_bytes(sink->checksum, data, len);
-}
-
 /* The sink's unchecked core (codec.h): the public functions below check, then call these; the
- * base stack, whose answers are right by construction, calls them directly. */
+ * base stack, whose answers are right by construction, calls them directly. Every byte of a frame
+ * goes out through ctrlbus_sink_emit(), the header and the checksum too (each announced in
+ * `remaining` just before): one function holds the write call, so the write path is shallow. */
 
 void ctrlbus_sink_start(ctrlbus_sink_t *sink, uint8_t cmd, size_t payload_len, bool is_long)
 {
@@ -97,19 +85,28 @@ void ctrlbus_sink_start(ctrlbus_sink_t *sink, uint8_t cmd, size_t payload_len, b
     sink->status = CTRLBUS_OK;
     sink->checksum = 0;
     sink->frame_len = (uint32_t)(payload_len + header_len + 1u);
-    sink->remaining = (uint16_t)payload_len;
+    sink->remaining = (uint16_t)header_len;
     sink->in_frame = 1;
-    sink_out(sink, header, header_len);
+    ctrlbus_sink_emit(sink, header, header_len);
+    sink->remaining = (uint16_t)payload_len;
 }
 
 void ctrlbus_sink_emit(ctrlbus_sink_t *sink, const uint8_t *data, size_t len)
 {
     if (len > sink->remaining) { /* remaining is 0 outside a frame */
-        ctrlbus_sink_fail(sink, CTRLBUS_ERR_LENGTH); /* so sink_out writes nothing */
-    } else {
-        sink->remaining = (uint16_t)(sink->remaining - len);
+        ctrlbus_sink_fail(sink, CTRLBUS_ERR_LENGTH); /* so nothing is written */
+        return;
     }
-    sink_out(sink, data, len); /* a tail call: no frame of ours while write runs */
+    sink->remaining = (uint16_t)(sink->remaining - len);
+    if (sink->status != CTRLBUS_OK || len == 0) {
+        return;
+    }
+    int32_t result = sink->write(sink->context, data, len);
+    if (result < 0) {
+        sink->status = result;
+        return;
+    }
+    sink->checksum = xor_bytes(sink->checksum, data, len);
 }
 
 int32_t ctrlbus_sink_finish(ctrlbus_sink_t *sink)
@@ -118,9 +115,9 @@ int32_t ctrlbus_sink_finish(ctrlbus_sink_t *sink)
         ctrlbus_sink_fail(sink, CTRLBUS_ERR_LENGTH);
     }
     sink->in_frame = 0;
-    sink->remaining = 0;
+    sink->remaining = 1; /* the checksum, which emit folds into itself: it is not read again */
     uint8_t checksum = sink->checksum;
-    sink_out(sink, &checksum, 1);
+    ctrlbus_sink_emit(sink, &checksum, 1);
     return sink->status;
 }
 
