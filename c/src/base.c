@@ -908,21 +908,22 @@ void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
     if (base == NULL || base->config == NULL) {
         return;
     }
-    const ctrlbus_base_config_t *config = base->config;
     run_watchdog(base, now_ms);
     /* Only what is in the ring now: an interrupt that keeps feeding cannot keep us here. */
     uint16_t head = base->rx_head;
     CTRLBUS_RING_FENCE(); /* the bytes up to head are read only after head is */
-    uint16_t tail = base->rx_tail;
     ctrlbus_frame_t frame;
-    bool ticked = false;
-    do {
+    /* Each turn handles the ring's bytes from rx_tail (which only poll writes: no copy is kept,
+     * which keeps poll's frame small), and the last one, with the ring done, the inter-byte
+     * timeout. */
+    for (;;) {
+        const ctrlbus_base_config_t *config = base->config;
+        uint16_t tail = base->rx_tail;
         ctrlbus_rx_t rx;
         size_t used = 0;
         if (tail == head) {
             /* The ring is done: the inter-byte timeout, then whatever it leaves to answer. */
             ctrlbus_decoder_tick(&base->decoder, now_ms);
-            ticked = true;
             rx = CTRLBUS_RX_BUSY; /* drain: the decoder's own results */
         } else {
 #if CTRLBUS_DECODER_FAST == 0
@@ -932,7 +933,7 @@ void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
             used = rx != CTRLBUS_RX_BUSY;
 #else
             /* A run shorter than PUSH_BELOW byte by byte, a longer one through take() (both
-             * from tail, which is rx_tail). */
+             * from tail). */
             used = (size_t)((head > tail ? head : config->rx_ring_size) - tail);
             rx = used < PUSH_BELOW ? push_run(base, &used, now_ms, &frame)
                                    : take_run(base, &used, now_ms, &frame);
@@ -948,13 +949,15 @@ void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
             }
             CTRLBUS_RING_FENCE(); /* done with those bytes before feed may reuse their slots */
             base->rx_tail = tail;
-        } else if (results == 0u) {
-            head = tail; /* cannot happen with a valid decoder; never spin */
         }
-        if (dropped_after_reboot(base)) {
+        /* The timeout's turn (nothing used, the ring done) is the last. */
+        if (dropped_after_reboot(base) || (used == 0u && tail == head)) {
             return;
         }
-    } while (!ticked);
+        if (used == 0u && results == 0u) {
+            head = tail; /* cannot happen with a valid decoder; never spin: tick next */
+        }
+    }
 }
 
 /* Whether config asks for a feature that this build compiled out (ctrlbus/ctrlbus_config.h). */
