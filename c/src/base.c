@@ -960,29 +960,30 @@ void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
     }
 }
 
-/* Whether config asks for a feature that this build compiled out (ctrlbus/ctrlbus_config.h). */
+/* Whether config asks for a feature that this build compiled out (ctrlbus/ctrlbus_config.h).
+ * The tests are OR-ed without short cuts: one test of the sum instead of a branch each. */
 static bool needs_missing_feature(const ctrlbus_base_config_t *config)
 {
-    bool missing = false;
+    unsigned missing = 0;
 #if !CTRLBUS_CONFIG_HEALTH
-    missing = missing || config->health_entries != NULL;
+    missing |= config->health_entries != NULL;
 #endif
 #if !CTRLBUS_CONFIG_COMMAND_QUEUE
-    missing = missing || config->command_queue != NULL;
+    missing |= config->command_queue != NULL;
 #endif
 #if !CTRLBUS_CONFIG_LIMITS
     const ctrlbus_base_limits_t *limits = &config->limits;
-    missing = missing || limits->max_wheel_mm_s != 0u || limits->wheel_track_mm != 0u ||
-              limits->max_vx_mps_q16 != 0u || limits->max_omega_radps_q16 != 0u;
+    missing |= (limits->max_wheel_mm_s | limits->wheel_track_mm) != 0u;
+    missing |= (limits->max_vx_mps_q16 | limits->max_omega_radps_q16) != 0u;
 #endif
 #if !CTRLBUS_CONFIG_PROFILE_SDK2020
-    missing = missing || config->profile == CTRLBUS_PROFILE_SDK2020;
+    missing |= config->profile == CTRLBUS_PROFILE_SDK2020;
 #endif
 #if !CTRLBUS_CONFIG_CONF_ADV
-    missing = missing || config->binary_config != NULL;
+    missing |= config->binary_config != NULL;
 #endif
     (void)config;
-    return missing;
+    return missing != 0u;
 }
 
 int32_t ctrlbus_base_init(ctrlbus_base_t *base, const ctrlbus_base_config_t *config,

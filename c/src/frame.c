@@ -77,11 +77,15 @@ int32_t ctrlbus_sink_init(ctrlbus_sink_t *sink, ctrlbus_write_fn write, void *co
 
 void ctrlbus_sink_start(ctrlbus_sink_t *sink, uint8_t cmd, size_t payload_len, bool is_long)
 {
-    uint32_t len_field = (uint32_t)payload_len + 1u; /* payload_len <= 65534: exact below */
-    uint8_t header[4] = {is_long ? CTRLBUS_FLAG_LONG : CTRLBUS_FLAG_STANDARD, (uint8_t)len_field,
-                         (uint8_t)(len_field >> 8), cmd};
-    size_t header_len = is_long ? 4u : 3u;
-    header[header_len - 1u] = cmd; /* a standard frame has one length byte */
+    size_t len_field = payload_len + 1u; /* payload_len <= 65534: exact below */
+    uint8_t header[4];
+    size_t header_len = 0;
+    header[header_len++] = is_long ? CTRLBUS_FLAG_LONG : CTRLBUS_FLAG_STANDARD;
+    header[header_len++] = (uint8_t)(len_field & 0xFFu);
+    if (is_long) {
+        header[header_len++] = (uint8_t)(len_field >> 8); /* a standard frame has one */
+    }
+    header[header_len++] = cmd;
     sink->status = CTRLBUS_OK;
     sink->checksum = 0;
     sink->frame_len = (uint32_t)(payload_len + header_len + 1u);
