@@ -8,6 +8,14 @@
 
 #include "codec.h"
 
+/* Keeps a function out of line (GCC, clang): its frame is then on the stack only
+ * while it runs (answer(): not while the decoder works), or its code is there once. */
+#if defined(__GNUC__)
+#define NOINLINE __attribute__((noinline))
+#else
+#define NOINLINE
+#endif
+
 /* base->flags */
 #define FLAG_WATCHDOG_EXPIRED 0x01u /* the current silence has been acted on */
 #define FLAG_MOTION_COMMANDED 0x02u /* the last motion command passed on was not zero */
@@ -323,7 +331,7 @@ static void run_watchdog(ctrlbus_base_t *base, uint32_t now_ms)
     }
 }
 
-static void note_motion(ctrlbus_base_t *base, bool clamped, bool moving)
+static NOINLINE void note_motion(ctrlbus_base_t *base, bool clamped, bool moving)
 {
     if (clamped) {
         base->clamped_commands++;
@@ -372,7 +380,7 @@ static int32_t with_sign_of(int32_t sign, uint32_t value)
 
 /* Clamps *value to +-limit (0: no limit). Returns whether it changed. A limit above INT32_MAX
  * never acts: no magnitude exceeds it. */
-static bool clamp_to(int32_t *value, uint32_t limit)
+static NOINLINE bool clamp_to(int32_t *value, uint32_t limit)
 {
     if (limit == 0u || magnitude(*value) <= limit) {
         return false;
@@ -569,14 +577,6 @@ static const uint8_t ZEROED[CTRLBUS_REQ_HEALTH_CLR_ERROR + 1 - ZEROED_FIRST] COD
         sizeof(ctrlbus_set_v_and_get_deadreckon_answer_t),
     [CTRLBUS_REQ_HEALTH_GET_ERROR - ZEROED_FIRST] = sizeof(ctrlbus_health_get_error_answer_t),
 };
-
-/* Keeps a function out of line (GCC, clang): answer()'s storage is then on the stack only while
- * an answer is written, not while the decoder works. */
-#if defined(__GNUC__)
-#define NOINLINE __attribute__((noinline))
-#else
-#define NOINLINE
-#endif
 
 /* The answer being written: its storage, and when nothing failed, `size` payload bytes of
  * `source` (usually the storage) through `layout` (NULL: its bytes as they are). */
