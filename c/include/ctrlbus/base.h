@@ -75,13 +75,15 @@
  *
  * Footprint: ctrlbus_base_t is 64 bytes on a 32-bit MCU (scripts/size.sh prints it), besides the
  * caller's rx_ring, frame_buffer and the optional health and command storage. ctrlbus_base_poll()
- * needs at most about 310 bytes of C stack on a Cortex-M0+ at -Os in the default configuration
+ * needs at most about 300 bytes of C stack on a Cortex-M0+ at -Os in the default configuration
  * (`make size` prints the worst case per target, from -fstack-usage along the call graph; the
- * deepest path is the decoder's take()), plus what the handlers and write use. Of that, answering one
- * request takes 256 bytes, poll included: the storage of the answer a handler fills (64
- * bytes, GET_BASE_SENSOR_DATA's, the largest; GET_BASE_CONF and the 0x21 blob are written from
- * the application's storage) and the frame writer, only while that answer is written. Features
- * can be compiled out (ctrlbus/ctrlbus_config.h).
+ * deepest path is the decoder's take()), plus what the handlers and write use. Of that, answering
+ * one request takes at most 256 bytes, poll included, whether a handler runs (the deepest: a
+ * velocity command through the limits) or the answer is written: the storage of the answer a
+ * handler fills (64 bytes, GET_BASE_SENSOR_DATA's, the largest; GET_BASE_CONF and the 0x21 blob
+ * are written from the application's storage) is on the stack while either runs, the frame
+ * writer only while the answer is written. Features can be compiled out
+ * (ctrlbus/ctrlbus_config.h).
  *
  * Behaviour: what the stack does by itself (docs/protocol.md has the wire rules it follows):
  *  1. Order. ctrlbus_base_poll() runs the motor watchdog (6), then takes the bytes that were in
