@@ -457,10 +457,12 @@ static inline ctrlbus_rx_t ctrlbus_decoder_push(ctrlbus_decoder_t *decoder, uint
     if (end + 1u < complete_at && now_ms == decoder->last_byte_ms) {
         decoder->buffer[end] = byte;
         decoder->end = end + 1u;
+#if CTRLBUS_DECODER_FAST == 1 /* (level 2 checks a candidate once, when it is complete) */
         decoder->checksum = (uint8_t)(decoder->checksum ^ byte);
+#endif
         return CTRLBUS_RX_NONE;
     }
-#if CTRLBUS_DECODER_INLINE
+#if CTRLBUS_DECODER_INLINE && CTRLBUS_DECODER_FAST == 1
     if ((decoder->state & CTRLBUS_DECODER_WAITING_) == 0u && decoder->buffer != NULL) {
         uint8_t *buffer = decoder->buffer;
         if (end == 0u) {
