@@ -382,6 +382,13 @@ static void add_count(ctrlbus_decoder_t *d, unsigned rx, uint32_t n)
     }
 }
 
+#if CTRLBUS_DECODER_FAST
+static void count(uint32_t *counter)
+{
+    *counter += 1u;
+}
+#endif
+
 int32_t ctrlbus_decoder_init(ctrlbus_decoder_t *decoder, uint8_t *buffer, size_t buffer_size,
                              uint16_t timeout_ms, ctrlbus_decoder_stats_t *stats)
 {
@@ -476,7 +483,7 @@ static ctrlbus_rx_t take_frame(ctrlbus_decoder_t *d, const uint8_t *bytes, uint3
         frame->payload_len = (size_t)(len_field - 1u);
     }
     if (d->stats != NULL) {
-        d->stats->frames += 1u;
+        count(&d->stats->frames);
     }
     d->start = d->end = d->complete_at = 0;
     d->checksum = 0;
@@ -488,11 +495,6 @@ static ctrlbus_rx_t take_frame(ctrlbus_decoder_t *d, const uint8_t *bytes, uint3
 
 #if CTRLBUS_DECODER_FAST == 1
 /* ---- level 1: the byte path, with the state the bulk path keeps ---------------------------- */
-
-static void count(uint32_t *counter)
-{
-    *counter += 1u;
-}
 
 /* Records an event (rule 1's "an event was raised since the last frame") and returns it. */
 static ctrlbus_rx_t raise_event(ctrlbus_decoder_t *d, ctrlbus_rx_t event)
