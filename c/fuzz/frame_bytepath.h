@@ -1,11 +1,13 @@
 /* SPDX-License-Identifier: MIT */
 /* The decoder of frame.c built once more without its bulk path (CTRLBUS_DECODER_FAST 0) and under
  * other names, so that a fuzz target can run both side by side and require the same results from
- * them. At level 0 frame.c has a core of its own (the smallest: one scan at the buffer's front, a
- * candidate's checksum taken once), written apart from the byte path that the bulk path builds on
- * (levels 1 and 2): two implementations of the same rules that must not differ in a thing. Same
+ * them. At level 0 frame.c has a core of its own (the smallest: a waiting candidate kept at the
+ * buffer's front, a candidate's checksum taken once), written apart from the byte path that the
+ * bulk path builds on (level 1): two implementations of the same rules that must not differ in a thing. Same
  * types and contracts as ctrlbus/frame.h.
- * The lean_ twin is frame.c at CTRLBUS_DECODER_FAST 2, the level size-optimised builds get. */
+ * The lean_ twin is frame.c at CTRLBUS_DECODER_FAST 2, the level size-optimised builds get: the
+ * level-0 core with the fast steps of its own (push's header and last byte, feed's runs, take's
+ * in-place frame), which fuzz_decoder.c compares with level 1 call by call. */
 #ifndef CTRLBUS_FUZZ_FRAME_BYTEPATH_H
 #define CTRLBUS_FUZZ_FRAME_BYTEPATH_H
 

@@ -1,7 +1,6 @@
 /* SPDX-License-Identifier: MIT */
-/* frame.c with the bulk path as size-optimised builds get it by default (CTRLBUS_DECODER_FAST 2:
- * take_bulk() in the general loop, without the shortcuts), every public name prefixed lean_ (see
- * frame_bytepath.h). */
+/* frame.c at the level size-optimised builds get by default (CTRLBUS_DECODER_FAST 2: the compact
+ * core with its fast steps), every public name prefixed lean_ (see frame_bytepath.h). */
 #define CTRLBUS_DECODER_FAST 2
 #define TWIN_PREFIX lean_
 #include "frame_twin.h"

@@ -20,15 +20,21 @@
  *   D  frame.c's decoder through the byte API, ctrlbus_decoder_push() per byte at the same times
  *      (its inline path and push_slow()), every result after it taken with next(): the same
  *      results and counters as A; and a push while results wait must be refused (BUSY) and change
- *      nothing.
+ *      nothing (D runs in lockstep with K, below).
  *   E  the byte-path twin through its push, as D: the same again.
- *   F  the lean twin (frame_lean.c: the bulk path at the level size-optimised builds get), fed the
- *      same cuts as A: the same results and counters.
+ *   F  the lean twin (frame_lean.c: level 2, the level size-optimised builds get), fed the same
+ *      cuts as A: the same results and counters (in lockstep with J, below).
  *   G  frame.c's decoder through ctrlbus_decoder_take(), the same cuts, each taken until it returns
  *      NONE: the same results and counters as A; every frame checked where it lies (in the
  *      decoder's buffer, or in place in the cut), the cut used up exactly.
  *   H  the lean twin through its take, as G.
- *   I  the byte-path twin through its take (the general loop alone), as G. */
+ *   I  the byte-path twin through its take (the general loop alone), as G.
+ * And call by call, level 1 (frame.c as built here) against level 2 (the lean twin, its own
+ * compact core), each pair taking the same cuts at the same times and ticks: every call must
+ * return the same (result, frame; for feed, the bytes taken), with the same counters and busy after
+ * it:
+ *   F/J  feed and next;  D/K  push and next (K: the lean push);  G/H  take;
+ *   L/M  mixed: each cut goes through feed, push or take, chosen by its position. */
 #include <string.h>
 
 #include "frame_bytepath.h"
@@ -47,7 +53,8 @@ typedef struct {
     uint64_t frame_bytes; /* bytes of the frames it handed out */
 } run_t;
 
-static fuzz_log_t log_a, log_c, log_d, log_e, log_f, log_g, log_h, log_i;
+static fuzz_log_t log_a, log_c, log_d, log_e, log_f, log_g, log_h, log_i, log_j, log_k, log_l,
+    log_m;
 static uint32_t max_frame;
 
 static uint64_t frame_size(const ctrlbus_frame_t *frame)
@@ -176,21 +183,6 @@ static void drain_with(run_t *r, next_fn next)
 
 typedef size_t (*feed_fn)(ctrlbus_decoder_t *, const uint8_t *, size_t, uint32_t);
 
-/* Decoder F: one cut, fed and drained as the header's loop does. */
-static void feed_cut(run_t *r, feed_fn feed, next_fn next, const uint8_t *data, size_t len,
-                     uint32_t now)
-{
-    while (len > 0) {
-        size_t used = feed(&r->decoder, data, len, now);
-        FUZZ_CHECK(used <= len);
-        r->taken += used;
-        data += used;
-        len -= used;
-        drain_with(r, next);
-    }
-    check_accounting(r);
-}
-
 static ctrlbus_rx_t push_ours(ctrlbus_decoder_t *d, uint8_t byte, uint32_t now, ctrlbus_frame_t *f)
 {
     return ctrlbus_decoder_push(d, byte, now, f);
@@ -267,6 +259,181 @@ static void take_cut(run_t *r, take_fn take, const uint8_t *data, size_t len, ui
 
 typedef int32_t (*init_fn)(ctrlbus_decoder_t *, uint8_t *, size_t, uint16_t,
                           ctrlbus_decoder_stats_t *);
+typedef void (*tick_fn)(ctrlbus_decoder_t *, uint32_t);
+typedef bool (*busy_fn)(const ctrlbus_decoder_t *);
+
+/* One level's API, for the lockstep pairs. */
+typedef struct {
+    feed_fn feed;
+    next_fn next;
+    push_fn push;
+    take_fn take;
+    tick_fn tick;
+    busy_fn busy;
+} api_t;
+
+static const api_t LEVEL_1 = {ctrlbus_decoder_feed, ctrlbus_decoder_next, push_ours,
+                              take_ours,            ctrlbus_decoder_tick, ctrlbus_decoder_busy};
+static const api_t LEVEL_2 = {lean_decoder_feed, lean_decoder_next, lean_decoder_push,
+                              lean_decoder_take, lean_decoder_tick, lean_decoder_busy};
+
+/* One result of each of a lockstep pair (x at level 1, y at level 2): they must be the same. A
+ * frame lies in its decoder's buffer or, from take, in place in the cut data[0..len). */
+static void pair_result(run_t *x, run_t *y, ctrlbus_rx_t rx, ctrlbus_rx_t ry,
+                        const ctrlbus_frame_t *fx, const ctrlbus_frame_t *fy, const uint8_t *data,
+                        size_t len)
+{
+    FUZZ_CHECK(rx == ry);
+    FUZZ_CHECK(rx >= CTRLBUS_RX_FRAME && rx <= CTRLBUS_RX_EMPTY_FRAME);
+    if (rx == CTRLBUS_RX_FRAME) {
+        const ctrlbus_frame_t *frames[2] = {fx, fy};
+        run_t *runs[2] = {x, y};
+        for (unsigned k = 0; k < 2u; k++) {
+            uintptr_t payload = (uintptr_t)frames[k]->payload;
+            if (data != NULL && payload >= (uintptr_t)data && payload < (uintptr_t)data + len) {
+                fuzz_check_frame(frames[k], data, len);
+                FUZZ_CHECK(frame_size(frames[k]) <= max_frame);
+            } else {
+                fuzz_check_frame(frames[k], runs[k]->buffer.buffer, max_frame);
+            }
+            runs[k]->frame_bytes += frame_size(frames[k]);
+        }
+        check_same_frame(fx, fy);
+    }
+    fuzz_log_add(x->log, rx, fx);
+    fuzz_log_add(y->log, ry, fy);
+}
+
+/* After every call of a pair: the same counters and busy, and the buffers' guards intact. */
+static void pair_state(const run_t *x, const run_t *y)
+{
+    fuzz_guarded_check(&x->buffer);
+    fuzz_guarded_check(&y->buffer);
+    FUZZ_CHECK(memcmp(&x->stats, &y->stats, sizeof x->stats) == 0);
+    FUZZ_CHECK(LEVEL_1.busy(&x->decoder) == LEVEL_2.busy(&y->decoder));
+}
+
+/* next() on both until NONE, call by call. */
+static void pair_drain(run_t *x, run_t *y, const uint8_t *data, size_t len)
+{
+    for (size_t results = 0;; results++) {
+        ctrlbus_frame_t fx;
+        ctrlbus_frame_t fy;
+        ctrlbus_rx_t rx = LEVEL_1.next(&x->decoder, &fx);
+        ctrlbus_rx_t ry = LEVEL_2.next(&y->decoder, &fy);
+        FUZZ_CHECK(rx == ry);
+        pair_state(x, y);
+        if (rx == CTRLBUS_RX_NONE) {
+            break;
+        }
+        FUZZ_CHECK(results <= len + (size_t)max_frame + 2u);
+        pair_result(x, y, rx, ry, &fx, &fy, data, len);
+    }
+}
+
+static void pair_feed(run_t *x, run_t *y, const uint8_t *data, size_t len, uint32_t now)
+{
+    while (len > 0) {
+        size_t ux = LEVEL_1.feed(&x->decoder, data, len, now);
+        size_t uy = LEVEL_2.feed(&y->decoder, data, len, now);
+        FUZZ_CHECK(ux == uy && ux <= len);
+        pair_state(x, y);
+        x->taken += ux;
+        y->taken += uy;
+        data += ux;
+        len -= ux;
+        pair_drain(x, y, NULL, 0);
+    }
+}
+
+static void pair_push(run_t *x, run_t *y, const uint8_t *data, size_t len, uint32_t now)
+{
+    for (size_t i = 0; i < len; i++) {
+        ctrlbus_frame_t fx;
+        ctrlbus_frame_t fy;
+        ctrlbus_rx_t rx = LEVEL_1.push(&x->decoder, data[i], now, &fx);
+        ctrlbus_rx_t ry = LEVEL_2.push(&y->decoder, data[i], now, &fy);
+        FUZZ_CHECK(rx == ry);
+        pair_state(x, y);
+        if (rx != CTRLBUS_RX_NONE) {
+            pair_result(x, y, rx, ry, &fx, &fy, NULL, 0);
+            if (i + 1u < len && (data[i] & 1u) && (x->decoder.state & FRAME_C_STATE_WAITING) &&
+                (y->decoder.state & FRAME_C_STATE_WAITING)) {
+                /* both refuse a byte while results wait, changing nothing (whether more results
+                 * may wait before next() says NONE is each core's own business) */
+                ctrlbus_decoder_t before_x = x->decoder;
+                ctrlbus_decoder_t before_y = y->decoder;
+                FUZZ_CHECK(LEVEL_1.push(&x->decoder, data[i + 1u], now + 1u, NULL) ==
+                           CTRLBUS_RX_BUSY);
+                FUZZ_CHECK(LEVEL_2.push(&y->decoder, data[i + 1u], now + 1u, NULL) ==
+                           CTRLBUS_RX_BUSY);
+                FUZZ_CHECK(memcmp(&before_x, &x->decoder, sizeof before_x) == 0);
+                FUZZ_CHECK(memcmp(&before_y, &y->decoder, sizeof before_y) == 0);
+                pair_state(x, y);
+            }
+            pair_drain(x, y, NULL, 0);
+        }
+        x->taken++;
+        y->taken++;
+    }
+}
+
+static void pair_take(run_t *x, run_t *y, const uint8_t *data, size_t len, uint32_t now)
+{
+    const uint8_t *at_x = data;
+    const uint8_t *at_y = data;
+    size_t left_x = len;
+    size_t left_y = len;
+    for (size_t results = 0;; results++) {
+        ctrlbus_frame_t fx;
+        ctrlbus_frame_t fy;
+        ctrlbus_rx_t rx = LEVEL_1.take(&x->decoder, &at_x, &left_x, now, &fx);
+        ctrlbus_rx_t ry = LEVEL_2.take(&y->decoder, &at_y, &left_y, now, &fy);
+        /* The same result; how many bytes a call takes before it returns one may differ (level 1
+         * steps over a whole garbage run with its event, level 2 over the event's byte only), and
+         * with them the counters, until the input is used up. */
+        FUZZ_CHECK(rx == ry);
+        FUZZ_CHECK(left_x <= len && at_x == data + (len - left_x));
+        FUZZ_CHECK(left_y <= len && at_y == data + (len - left_y));
+        fuzz_guarded_check(&x->buffer);
+        fuzz_guarded_check(&y->buffer);
+        if (rx == CTRLBUS_RX_NONE) {
+            pair_state(x, y);
+            break;
+        }
+        FUZZ_CHECK(results <= len + (size_t)max_frame + 2u);
+        pair_result(x, y, rx, ry, &fx, &fy, data, len);
+    }
+    FUZZ_CHECK(left_x == 0 && left_y == 0);
+    x->taken += len;
+    y->taken += len;
+}
+
+static void pair_tick(run_t *x, run_t *y, uint32_t now)
+{
+    LEVEL_1.tick(&x->decoder, now);
+    LEVEL_2.tick(&y->decoder, now);
+    pair_state(x, y);
+    pair_drain(x, y, NULL, 0);
+}
+
+/* The end of a cut: every byte accounted for in both. */
+static void pair_done(const run_t *x, const run_t *y)
+{
+    check_accounting(x);
+    check_accounting(y);
+}
+
+/* L/M: each cut through feed, push or take, chosen by its position in the stream. */
+static void pair_mixed(run_t *x, run_t *y, size_t pos, const uint8_t *data, size_t len,
+                       uint32_t now)
+{
+    switch ((uint32_t)(pos * 2654435761u) >> 30) {
+    case 0: pair_feed(x, y, data, len, now); break;
+    case 1: pair_push(x, y, data, len, now); break;
+    default: pair_take(x, y, data, len, now); break;
+    }
+}
 
 static void run_init(run_t *r, fuzz_log_t *log, uint16_t timeout, init_fn init)
 {
@@ -307,7 +474,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     const uint8_t *stream = in.data;
     size_t stream_len = in.left;
 
-    static run_t a, b, c, d, e, f, g, h, i;
+    static run_t a, b, c, d, e, f, g, h, i, j, k, l, m;
     run_init(&a, &log_a, timeout, ctrlbus_decoder_init);
     run_init(&b, NULL, timeout, bytepath_decoder_init); /* compared with A call by call */
     run_init(&c, &log_c, timeout, ctrlbus_decoder_init);
@@ -317,6 +484,10 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     run_init(&g, &log_g, timeout, ctrlbus_decoder_init);
     run_init(&h, &log_h, timeout, lean_decoder_init);
     run_init(&i, &log_i, timeout, bytepath_decoder_init);
+    run_init(&j, &log_j, timeout, ctrlbus_decoder_init);
+    run_init(&k, &log_k, timeout, lean_decoder_init);
+    run_init(&l, &log_l, timeout, ctrlbus_decoder_init);
+    run_init(&m, &log_m, timeout, lean_decoder_init);
 
     uint32_t now = fuzz_rng(&rng);
     for (size_t pos = 0; pos < stream_len;) {
@@ -325,16 +496,12 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             tick_both(&a, &b, tick_at);
             ctrlbus_decoder_tick(&c.decoder, tick_at);
             drain_one(&c);
-            ctrlbus_decoder_tick(&d.decoder, tick_at);
-            drain_with(&d, ctrlbus_decoder_next);
+            pair_tick(&d, &k, tick_at);
             bytepath_decoder_tick(&e.decoder, tick_at);
             drain_with(&e, bytepath_decoder_next);
-            lean_decoder_tick(&f.decoder, tick_at);
-            drain_with(&f, lean_decoder_next);
-            ctrlbus_decoder_tick(&g.decoder, tick_at);
-            drain_with(&g, ctrlbus_decoder_next);
-            lean_decoder_tick(&h.decoder, tick_at);
-            drain_with(&h, lean_decoder_next);
+            pair_tick(&j, &f, tick_at);
+            pair_tick(&g, &h, tick_at);
+            pair_tick(&l, &m, tick_at);
             bytepath_decoder_tick(&i.decoder, tick_at);
             drain_with(&i, bytepath_decoder_next);
             now = tick_at;
@@ -347,11 +514,15 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         }
         feed_both(&a, &b, stream + pos, cut, now);
         feed_bytewise(&c, stream + pos, cut, now);
-        push_bytewise(&d, push_ours, ctrlbus_decoder_next, stream + pos, cut, now);
+        pair_push(&d, &k, stream + pos, cut, now);
+        pair_done(&d, &k);
         push_bytewise(&e, bytepath_decoder_push, bytepath_decoder_next, stream + pos, cut, now);
-        feed_cut(&f, lean_decoder_feed, lean_decoder_next, stream + pos, cut, now);
-        take_cut(&g, take_ours, stream + pos, cut, now);
-        take_cut(&h, lean_decoder_take, stream + pos, cut, now);
+        pair_feed(&j, &f, stream + pos, cut, now);
+        pair_done(&j, &f);
+        pair_take(&g, &h, stream + pos, cut, now);
+        pair_done(&g, &h);
+        pair_mixed(&l, &m, pos, stream + pos, cut, now);
+        pair_done(&l, &m);
         take_cut(&i, bytepath_decoder_take, stream + pos, cut, now);
         pos += cut;
     }
@@ -360,22 +531,20 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     tick_both(&a, &b, end);
     ctrlbus_decoder_tick(&c.decoder, end);
     drain_one(&c);
-    ctrlbus_decoder_tick(&d.decoder, end);
-    drain_with(&d, ctrlbus_decoder_next);
+    pair_tick(&d, &k, end);
     bytepath_decoder_tick(&e.decoder, end);
     drain_with(&e, bytepath_decoder_next);
-    lean_decoder_tick(&f.decoder, end);
-    drain_with(&f, lean_decoder_next);
-    ctrlbus_decoder_tick(&g.decoder, end);
-    drain_with(&g, ctrlbus_decoder_next);
-    lean_decoder_tick(&h.decoder, end);
-    drain_with(&h, lean_decoder_next);
+    pair_tick(&j, &f, end);
+    pair_tick(&g, &h, end);
+    pair_tick(&l, &m, end);
     bytepath_decoder_tick(&i.decoder, end);
     drain_with(&i, bytepath_decoder_next);
 
     FUZZ_CHECK(a.taken == stream_len && c.taken == stream_len);
     FUZZ_CHECK(d.taken == stream_len && e.taken == stream_len && f.taken == stream_len);
     FUZZ_CHECK(g.taken == stream_len && h.taken == stream_len && i.taken == stream_len);
+    FUZZ_CHECK(j.taken == stream_len && k.taken == stream_len && l.taken == stream_len &&
+               m.taken == stream_len);
     FUZZ_CHECK(fuzz_log_equal(&log_a, &log_c));
     FUZZ_CHECK(fuzz_log_equal(&log_a, &log_d));
     FUZZ_CHECK(fuzz_log_equal(&log_a, &log_e));
@@ -383,6 +552,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     FUZZ_CHECK(fuzz_log_equal(&log_a, &log_g));
     FUZZ_CHECK(fuzz_log_equal(&log_a, &log_h));
     FUZZ_CHECK(fuzz_log_equal(&log_a, &log_i));
+    FUZZ_CHECK(fuzz_log_equal(&log_a, &log_j) && fuzz_log_equal(&log_a, &log_k));
+    FUZZ_CHECK(fuzz_log_equal(&log_a, &log_l) && fuzz_log_equal(&log_a, &log_m));
     FUZZ_CHECK(memcmp(&a.stats, &c.stats, sizeof a.stats) == 0);
     FUZZ_CHECK(memcmp(&a.stats, &d.stats, sizeof a.stats) == 0);
     FUZZ_CHECK(memcmp(&a.stats, &e.stats, sizeof a.stats) == 0);
@@ -390,12 +561,16 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     FUZZ_CHECK(memcmp(&a.stats, &g.stats, sizeof a.stats) == 0);
     FUZZ_CHECK(memcmp(&a.stats, &h.stats, sizeof a.stats) == 0);
     FUZZ_CHECK(memcmp(&a.stats, &i.stats, sizeof a.stats) == 0);
+    FUZZ_CHECK(memcmp(&a.stats, &j.stats, sizeof a.stats) == 0);
+    FUZZ_CHECK(memcmp(&a.stats, &l.stats, sizeof a.stats) == 0);
     if (timeout != 0) {
         /* After the final timeout nothing is left: every byte is in a frame or discarded. */
         FUZZ_CHECK(!ctrlbus_decoder_busy(&a.decoder) && !ctrlbus_decoder_busy(&c.decoder));
         FUZZ_CHECK(!ctrlbus_decoder_busy(&d.decoder) && !bytepath_decoder_busy(&e.decoder));
         FUZZ_CHECK(!lean_decoder_busy(&f.decoder) && !ctrlbus_decoder_busy(&g.decoder));
         FUZZ_CHECK(!lean_decoder_busy(&h.decoder) && !bytepath_decoder_busy(&i.decoder));
+        FUZZ_CHECK(!ctrlbus_decoder_busy(&j.decoder) && !lean_decoder_busy(&k.decoder));
+        FUZZ_CHECK(!ctrlbus_decoder_busy(&l.decoder) && !lean_decoder_busy(&m.decoder));
         FUZZ_CHECK(a.taken == a.frame_bytes + a.stats.bytes_discarded);
     }
     return 0;

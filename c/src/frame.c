@@ -383,6 +383,13 @@ static void add_count(ctrlbus_decoder_t *d, unsigned rx, uint32_t n)
     }
 }
 
+#if CTRLBUS_DECODER_FAST
+static void count(uint32_t *counter)
+{
+    *counter += 1u;
+}
+#endif
+
 int32_t ctrlbus_decoder_init(ctrlbus_decoder_t *decoder, uint8_t *buffer, size_t buffer_size,
                              uint16_t timeout_ms, ctrlbus_decoder_stats_t *stats)
 {
@@ -459,12 +466,36 @@ static void move_to_front(ctrlbus_decoder_t *d)
 }
 
 #if CTRLBUS_DECODER_FAST
-/* ---- the byte path, with the state the bulk path keeps ------------------------------------- */
-
-static void count(uint32_t *counter)
+/* ctrlbus_decoder_take() hands out the frame whose bytes are at bytes[0..): its header and LEN are
+ * known. Nothing stays buffered; what the scan would leave behind is settled here (rules 2-3 and
+ * the buffer running empty). */
+#if CTRLBUS_DECODER_FAST == 1
+IN_LINE
+#else
+RARE /* one copy, for push_slow() and take_slow() */
+#endif
+static ctrlbus_rx_t take_frame(ctrlbus_decoder_t *d, const uint8_t *bytes, uint32_t header,
+                                       uint32_t len_field, uint32_t now_ms, ctrlbus_frame_t *frame)
 {
-    *counter += 1u;
+    if (frame != NULL) {
+        frame->is_long = header == 3u;
+        frame->cmd = bytes[header];
+        frame->payload = bytes + header + 1u;
+        frame->payload_len = (size_t)(len_field - 1u);
+    }
+    if (d->stats != NULL) {
+        count(&d->stats->frames);
+    }
+    d->start = d->end = d->complete_at = 0;
+    d->checksum = 0;
+    clear_flag(d, STATE_EVENT_SINCE_FRAME | STATE_FLUSHING | STATE_IN_SPAN);
+    d->last_byte_ms = now_ms;
+    return CTRLBUS_RX_FRAME;
 }
+#endif
+
+#if CTRLBUS_DECODER_FAST == 1
+/* ---- level 1: the byte path, with the state the bulk path keeps ---------------------------- */
 
 /* Records an event (rule 1's "an event was raised since the last frame") and returns it. */
 static ctrlbus_rx_t raise_event(ctrlbus_decoder_t *d, ctrlbus_rx_t event)
@@ -964,17 +995,22 @@ ctrlbus_rx_t ctrlbus_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *f
 #endif
 }
 
-#else /* CTRLBUS_DECODER_FAST == 0 */
-/* ---- the byte path alone: the smallest decoder ------------------------------------------------
+#else /* CTRLBUS_DECODER_FAST 0 or 2 */
+/* ---- levels 0 and 2: the compact core -------------------------------------------------------
  *
- * The same rules and the same state bits, in less code. The scan position is always the front of
- * the buffer: bytes dropped there (discarded, or a frame handed out) only advance `start`, and the
- * next scan moves what follows them to the front first. A candidate's checksum is the XOR of its
- * bytes, taken once when it is complete; d->complete_at holds the size of the last frame found
- * (for next()), and d->checksum the byte that STATE_HELD keeps. Between calls only an incomplete
- * candidate (or nothing) is buffered, so a scan that finds nothing new costs O(1), and every call
- * can simply scan first; a waiting candidate is shorter than max_frame, so the byte after it
- * always fits. A result found is held in the state until next() hands it out; after that
+ * The same rules and the same state bits, in less code (level 0 is this alone, the smallest
+ * decoder; level 2 adds the few steps that make it fast at -Os: push()'s inline path through an
+ * armed candidate, feed() copying a candidate's known remainder in one run, take() checking a
+ * whole frame in place). The scan advances `start` over the bytes it drops (and next() over a
+ * frame it hands out); a scan that ends waiting for more bytes moves its incomplete candidate to
+ * the front of the buffer, where new bytes have room behind it (a waiting candidate is shorter
+ * than max_frame, so the byte after it always fits). A candidate's checksum is the XOR of its
+ * bytes, taken once when it is complete. d->complete_at holds the size of the frame found (for
+ * next()) or, after a scan that found nothing, of the incomplete candidate at the front when its
+ * header is buffered (0 otherwise, and after next() hands out a frame): push()'s inline path and
+ * feed()'s runs append up to it without a scan. d->checksum holds the byte that STATE_HELD keeps.
+ * Between calls only an incomplete candidate (or nothing) is buffered, so a scan that finds nothing
+ * new costs O(1), and every call can simply scan first. A result found is held in the state until next() hands it out; after that
  * STATE_RESCAN says that more may wait in the buffered bytes. */
 
 /* Rules 1, 2 and 4: drops `drop` bytes at `start` that are not part of a yielded frame, as rx:
@@ -999,12 +1035,22 @@ RARE static ctrlbus_rx_t discard(ctrlbus_decoder_t *d, unsigned rx, uint32_t dro
             set_flag(d, STATE_IN_SPAN);
         }
     }
-    d->start = drop; /* (the scan is at the front) */
+    d->start += drop;
     if (quiet) {
         return CTRLBUS_RX_NONE;
     }
     set_flag(d, STATE_EVENT_SINCE_FRAME);
     return (ctrlbus_rx_t)rx;
+}
+
+/* The XOR of a complete candidate's bytes (0 for a right checksum): a word at a time at level 2. */
+static uint8_t candidate_xor(const uint8_t *cand, uint32_t size)
+{
+#if CTRLBUS_DECODER_FAST
+    return ctrlbus_xor_in_place_(cand, size);
+#else
+    return xor_bytes(0u, cand, (size_t)size);
+#endif
 }
 
 /* Rules 1-5 over the buffered bytes, from `start`: finds the first result (a frame stays at
@@ -1013,19 +1059,19 @@ RARE static ctrlbus_rx_t discard(ctrlbus_decoder_t *d, unsigned rx, uint32_t dro
 static bool scan(ctrlbus_decoder_t *d)
 {
     ctrlbus_rx_t found;
+    uint32_t size;
     for (;;) {
-        if (d->start != 0u) {
-            move_to_front(d); /* the bytes dropped go */
-        }
-        uint32_t avail = d->end;
-        const uint8_t *cand = d->buffer;
+        uint32_t avail = d->end - d->start;
+        const uint8_t *cand = d->buffer + d->start;
         unsigned rx = CTRLBUS_RX_GARBAGE;
         uint32_t drop = 1u;
+        size = 0u;
         if (avail == 0u) {
             /* Run empty: leave any span (nothing buffered is in it any more). A byte held behind
              * the stale bytes of a timeout goes in now. */
             unsigned held = d->state & STATE_HELD;
             d->buffer[0] = d->checksum;
+            d->start = 0u;
             d->end = held ? 1u : 0u;
             clear_flag(d, STATE_FLUSHING | STATE_IN_SPAN | STATE_HELD);
             if (held) {
@@ -1038,7 +1084,6 @@ static bool scan(ctrlbus_decoder_t *d)
             /* Rules 2-3: a candidate; its size is known once its header is buffered. */
             uint32_t header = header_size(cand[0]);
             uint32_t len_field = 0u;
-            uint32_t size = 0u;
             if (avail >= header) {
                 len_field = length_field(cand, header);
                 size = header + len_field + 1u;
@@ -1046,12 +1091,11 @@ static bool scan(ctrlbus_decoder_t *d)
             if (size > d->max_frame) {
                 rx = CTRLBUS_RX_OVERSIZE;
             } else if (size != 0u && avail >= size) {
-                if (xor_bytes(0u, cand, (size_t)size) != 0u) {
+                if (candidate_xor(cand, size) != 0u) {
                     rx = CTRLBUS_RX_CHECKSUM_ERROR;
                 } else if (len_field != 0u) {
                     add_count(d, CTRLBUS_RX_FRAME, 1u);
                     clear_flag(d, STATE_EVENT_SINCE_FRAME);
-                    d->complete_at = size; /* for next() */
                     found = CTRLBUS_RX_FRAME;
                     break;
                 } else {
@@ -1061,15 +1105,21 @@ static bool scan(ctrlbus_decoder_t *d)
             } else if (d->state & STATE_FLUSHING) {
                 rx = CTRLBUS_RX_TIMEOUT; /* rule 5: a stale partial frame */
             } else {
-                found = CTRLBUS_RX_NONE; /* incomplete: wait for more bytes */
+                /* Incomplete: wait for more bytes, at the front, where they have room. */
+                if (d->start != 0u) {
+                    move_to_front(d);
+                }
+                found = CTRLBUS_RX_NONE;
                 break;
             }
         }
+        size = 0u;
         found = discard(d, rx, drop);
         if (found != CTRLBUS_RX_NONE) {
             break;
         }
     }
+    d->complete_at = size;
     d->state =
         (uint8_t)((d->state & (uint8_t)~(STATE_PENDING_MASK | STATE_RESCAN)) | (uint8_t)found);
     return found != CTRLBUS_RX_NONE;
@@ -1086,8 +1136,27 @@ static bool results_first(ctrlbus_decoder_t *d, uint32_t now_ms)
     if (d->end != d->start && timed_out(d, now_ms)) {
         set_flag(d, STATE_FLUSHING);
     }
+#if CTRLBUS_DECODER_FAST
+    else if (d->start == 0u && !(d->state & STATE_WAITING)) {
+        /* Nothing waits and what is buffered is at the front (not behind a result handed out):
+         * an incomplete candidate, or nothing, on which a scan would change nothing. */
+        return false;
+    }
+#endif
     return scan(d);
 }
+
+#if CTRLBUS_DECODER_FAST
+/* Appends n (> 0) bytes behind the buffered ones (a plain loop: no libc needed on an MCU). */
+static void append(ctrlbus_decoder_t *d, const uint8_t *bytes, size_t n)
+{
+    uint8_t *dst = d->buffer + d->end;
+    d->end += (uint32_t)n;
+    for (size_t i = 0; i < n; i++) {
+        dst[i] = bytes[i];
+    }
+}
+#endif
 
 size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, size_t len,
                             uint32_t now_ms)
@@ -1104,7 +1173,35 @@ size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, siz
     }
     d->last_byte_ms = now_ms;
     for (size_t used = 0; used < len;) {
+#if CTRLBUS_DECODER_FAST
+        /* When the candidate's size is known, the bytes that do not complete it change nothing
+         * that a scan looks at: they go in as one run, scanned once. */
+        size_t run = 1u;
+        if (d->complete_at > d->end) {
+            run = d->complete_at - d->end;
+            if (run > len - used) {
+                run = len - used;
+            }
+        } else if (d->end == 0u && (d->state & STATE_EVENT_SINCE_FRAME)) {
+            /* Rule 1 once its gap's event has been raised: garbage up to the next flag is only
+             * counted (nothing is buffered, so no span applies). */
+            while (used + run <= len && (data[used + run - 1u] | 0x40u) != CTRLBUS_FLAG_LONG) {
+                run++;
+            }
+            if (--run != 0u) {
+                if (d->stats != NULL) {
+                    d->stats->bytes_discarded += (uint32_t)run;
+                }
+                used += run;
+                continue;
+            }
+            run = 1u;
+        }
+        append(d, data + used, run);
+        used += run;
+#else
         d->buffer[d->end++] = data[used++]; /* behind a waiting candidate (at the front) */
+#endif
         if (scan(d)) {
             return used;
         }
@@ -1132,8 +1229,8 @@ ctrlbus_rx_t ctrlbus_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *f
     ctrlbus_rx_t rx = (ctrlbus_rx_t)(d->state & STATE_PENDING_MASK);
     clear_flag(d, STATE_PENDING_MASK);
     if (rx == CTRLBUS_RX_FRAME) {
-        /* The frame lies at the front; scanning resumes after it at the next call. */
-        const uint8_t *bytes = d->buffer;
+        /* The frame lies at `start`; scanning resumes after it at the next call. */
+        const uint8_t *bytes = d->buffer + d->start;
         uint32_t header = header_size(bytes[0]);
         uint32_t size = d->complete_at;
         if (frame != NULL) {
@@ -1142,7 +1239,8 @@ ctrlbus_rx_t ctrlbus_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *f
             frame->payload = bytes + header + 1u;
             frame->payload_len = (size_t)(size - header - 2u);
         }
-        d->start = size;
+        d->start += size;
+        d->complete_at = 0u; /* push()'s inline path waits for a scan */
     }
     if (rx != CTRLBUS_RX_NONE && (d->start != d->end || (d->state & STATE_HELD))) {
         set_flag(d, STATE_RESCAN); /* more results may wait in the bytes still buffered */
@@ -1160,6 +1258,45 @@ ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte,
     if (d->state & STATE_WAITING) {
         return CTRLBUS_RX_BUSY;
     }
+#if CTRLBUS_DECODER_FAST
+    /* The common bytes, when the candidate is at the front (or nothing is buffered) and no timeout
+     * applies, each settled as the scan would settle it: a flag into the empty buffer, the rest of
+     * a header (whose last byte arms the candidate with its size, when that fits), a byte inside
+     * an armed candidate at a new millisecond (push()'s inline path takes the others), and the
+     * last byte when it completes a frame with a command. The byte goes to buffer[end] first; the
+     * general path below puts it there again. */
+    uint32_t end = d->end;
+    uint8_t *cand = d->buffer;
+    if (d->start == 0u && (end == 0u || now_ms == d->last_byte_ms || !timed_out(d, now_ms))) {
+        uint32_t complete_at = d->complete_at;
+        cand[end] = byte;
+        if (end == 0u) {
+            if ((byte | 0x40u) != CTRLBUS_FLAG_LONG) {
+                goto general; /* garbage */
+            }
+        } else if (complete_at == 0u) {
+            uint32_t header = header_size(cand[0]);
+            if (end + 1u == header) {
+                complete_at = header + length_field(cand, header) + 1u;
+                if (complete_at > d->max_frame) {
+                    goto general; /* oversize */
+                }
+                d->complete_at = complete_at;
+            }
+        } else if (end + 1u == complete_at) {
+            uint32_t header = header_size(cand[0]);
+            uint32_t len_field = length_field(cand, header);
+            if (len_field == 0u || candidate_xor(cand, complete_at) != 0u) {
+                goto general; /* an empty frame, or a checksum error */
+            }
+            return take_frame(d, cand, header, len_field, now_ms, frame);
+        }
+        d->end = end + 1u;
+        d->last_byte_ms = now_ms;
+        return CTRLBUS_RX_NONE;
+    }
+general:
+#endif
     if (results_first(d, now_ms)) {
         /* A timeout applied before the byte, and its results come first: the byte waits behind
          * the stale bytes (see STATE_HELD) and goes in when they are used up. */
@@ -1167,11 +1304,17 @@ ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte,
         set_flag(d, STATE_HELD);
     } else {
         d->buffer[d->end++] = byte; /* as a feed of one byte; next() scans it */
+#if CTRLBUS_DECODER_FAST
+        d->last_byte_ms = now_ms;
+        if (!scan(d)) {
+            return CTRLBUS_RX_NONE; /* (next() would scan again, to find the same) */
+        }
+#endif
     }
     d->last_byte_ms = now_ms;
     return ctrlbus_decoder_next(d, frame);
 }
-#endif
+#endif /* the two cores */
 
 /* ---- take: results straight from the caller's bytes ----------------------------------------- */
 
@@ -1196,30 +1339,6 @@ OUT_OF_LINE static ctrlbus_rx_t take_general(ctrlbus_decoder_t *d, const uint8_t
     }
 }
 
-#if CTRLBUS_DECODER_FAST
-/* ctrlbus_decoder_take() hands out the frame whose bytes are at bytes[0..): its header and LEN are
- * known. Nothing stays buffered; what the scan would leave behind is settled here (rules 2-3 and
- * the buffer running empty). */
-IN_LINE static ctrlbus_rx_t take_frame(ctrlbus_decoder_t *d, const uint8_t *bytes, uint32_t header,
-                                       uint32_t len_field, uint32_t now_ms, ctrlbus_frame_t *frame)
-{
-    if (frame != NULL) {
-        frame->is_long = header == 3u;
-        frame->cmd = bytes[header];
-        frame->payload = bytes + header + 1u;
-        frame->payload_len = (size_t)(len_field - 1u);
-    }
-    if (d->stats != NULL) {
-        count(&d->stats->frames);
-    }
-    d->start = d->end = d->complete_at = 0;
-    d->checksum = 0;
-    clear_flag(d, STATE_EVENT_SINCE_FRAME | STATE_FLUSHING | STATE_IN_SPAN);
-    d->last_byte_ms = now_ms;
-    return CTRLBUS_RX_FRAME;
-}
-#endif
-
 ctrlbus_rx_t ctrlbus_decoder_take_slow(ctrlbus_decoder_t *decoder, const uint8_t **data,
                                        size_t *len, uint32_t now_ms, ctrlbus_frame_t *frame)
 {
@@ -1238,7 +1357,11 @@ ctrlbus_rx_t ctrlbus_decoder_take_slow(ctrlbus_decoder_t *decoder, const uint8_t
         if (n == 0) {
             return CTRLBUS_RX_NONE;
         }
+#if CTRLBUS_DECODER_FAST == 1
         if (d->end == 0u) {
+#else
+        if (d->end == d->start) { /* (the compact core leaves `start` behind a frame handed out) */
+#endif
             /* Nothing buffered (start is 0 too). Rule 1 first: garbage up to the next flag is
              * discarded, with one event per gap. */
 #if DECODER_SHORTCUTS
@@ -1278,6 +1401,18 @@ ctrlbus_rx_t ctrlbus_decoder_take_slow(ctrlbus_decoder_t *decoder, const uint8_t
                 return take_general(d, data, len, now_ms, frame);
             }
             if (n < header || size > n) {
+#if CTRLBUS_DECODER_FAST == 2
+                /* the start of a frame that goes on beyond the input: buffer it all, at the
+                 * front (the buffer has run empty: the flags of a span go) */
+                d->start = d->end = 0;
+                clear_flag(d, STATE_FLUSHING | STATE_IN_SPAN);
+                append(d, in, n);
+                d->complete_at = n < header ? 0u : size;
+                d->last_byte_ms = now_ms;
+                *data = in + n;
+                *len = 0;
+                return CTRLBUS_RX_NONE;
+#else
                 /* the start of a frame that goes on beyond the input: buffer it all */
                 d->checksum = copy_xor(d->buffer, in, n, 0);
                 d->end = (uint32_t)n;
@@ -1286,6 +1421,7 @@ ctrlbus_rx_t ctrlbus_decoder_take_slow(ctrlbus_decoder_t *decoder, const uint8_t
                 *data = in + n;
                 *len = 0;
                 return CTRLBUS_RX_NONE;
+#endif
             }
             /* a whole frame: checked in place, handed out without a copy */
             if (len_field == 0 || ctrlbus_xor_in_place_(in, size) != 0) {
@@ -1350,7 +1486,7 @@ ctrlbus_rx_t ctrlbus_decoder_take_slow(ctrlbus_decoder_t *decoder, const uint8_t
     return take_general(d, data, len, now_ms, frame);
 }
 
-#if CTRLBUS_DECODER_FAST
+#if CTRLBUS_DECODER_FAST == 1
 /* ---- push: one byte per call ---------------------------------------------------------------- */
 
 /* Lets push()'s inline path take the next bytes when the decoder waits for more of a candidate
@@ -1507,4 +1643,4 @@ ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte,
     d->complete_at = arm;
     return CTRLBUS_RX_NONE;
 }
-#endif /* CTRLBUS_DECODER_FAST */
+#endif /* CTRLBUS_DECODER_FAST == 1 */

@@ -202,12 +202,12 @@ typedef struct {
     uint32_t start;        /* first byte of the current candidate */
     uint32_t end;          /* one past the last buffered byte */
     uint32_t complete_at;  /* the `end` that completes the buffered candidate, when known and
-                            * ctrlbus_decoder_push() may append to it inline; else 0 (without
-                            * the bulk path: the size of the last frame found) */
+                            * ctrlbus_decoder_push() may append to it inline; else 0 (levels 0
+                            * and 2: while a frame waits for next(), its size) */
     uint32_t last_byte_ms; /* time of the last byte fed */
     uint16_t timeout_ms;   /* 0 = no inter-byte timeout */
-    uint8_t checksum;      /* XOR of buffer[start..end) while waiting for more bytes (without
-                            * the bulk path: a byte push() holds behind a timeout's results) */
+    uint8_t checksum;      /* XOR of buffer[start..end) while waiting for more bytes (levels 0
+                            * and 2: a byte push() holds behind a timeout's results) */
     uint8_t state;         /* pending result and flags, see frame.c */
 } ctrlbus_decoder_t;
 
@@ -253,27 +253,31 @@ void ctrlbus_decoder_reset(ctrlbus_decoder_t *decoder);
  * up to about max_frame^2 / 4 bytes when the failed span is full of nested false candidates, e.g.
  * 65536 visits for a 512-byte buffer; that work happens in the call that found the failure or in
  * the ctrlbus_decoder_next() calls after it. Nothing depends on history beyond the buffer.
- * Without the bulk path (CTRLBUS_DECODER_FAST 0) the scan always works at the front of the buffer:
- * a byte dropped there while bytes are buffered behind it moves them down, which adds up to
- * max_frame moves per discarded byte during a rescan (a clean link still costs O(1) per byte, and
- * a frame's checksum is taken once, when its last byte arrives).
+ * At levels 0 and 2 (the compact core, below) a candidate's checksum is taken once, when its last
+ * byte arrives, and a scan that ends waiting moves the incomplete candidate to the front of the
+ * buffer (at most max_frame moves per scan; a clean link still costs O(1) per byte).
  *
- * Speed: frame.c has a bulk path, set by the compile-time option CTRLBUS_DECODER_FAST: 0 = off;
- * 1 = on (the default): a feed takes the bytes of a frame whose length is known in one step (it
+ * Speed: the compile-time option CTRLBUS_DECODER_FAST chooses the decoder's core. 1 (the
+ * default): the bulk path, a feed takes the bytes of a frame whose length is known in one step (it
  * skips garbage up to the next flag in a tight loop, copies the frame into the buffer and computes
  * its checksum a machine word at a time), with shortcuts for the most common feeds (a whole frame,
- * a frame's start); 2 = on without the shortcuts, about half the code (the default when compiling
- * with -Os, as MCU firmware is). Only a header split between feeds, an oversize length, a failure
- * and the rescan after it go byte by byte. The results are the same at every level (the fuzz
- * target c/fuzz/fuzz_decoder.c compares them). For one byte at a time, use
- * ctrlbus_decoder_push() rather than a feed of 1.
+ * a frame's start); only a header split between feeds, an oversize length, a failure and the
+ * rescan after it go byte by byte. 0: the compact core alone, the smallest decoder, byte by byte.
+ * 2 (the default when compiling with -Os, as MCU firmware is): the compact core with the few fast
+ * steps a firmware build needs: ctrlbus_decoder_take() checks a whole frame in place and buffers
+ * a frame's start in one copy, a feed copies a candidate's known remainder in one run and counts a
+ * quiet garbage run in one step, and push settles a frame's header and last byte itself. The
+ * results are the same at every level (the fuzz target c/fuzz/fuzz_decoder.c compares level 1 with
+ * levels 0 and 2, level 2 call by call). For one byte at a time, use ctrlbus_decoder_push() rather
+ * than a feed of 1.
  * Measured with callgrind on x86-64 (bench/c/ctrlbus_parse.c, a Core<->base session, the caller's
  * loop included; docs/performance.md has the current figures): fed in 64-byte chunks about 9
- * instructions per byte at -O2 (level 1) and 13 at -Os (level 2), against about 68 without the
- * bulk path; ctrlbus_decoder_take() on the same chunks about 3.2 (inlined) and 7. Code on a
- * Cortex-M0+ at -Os (arm-none-eabi-gcc, frame.c's whole decoder): level 0 about 1.0 KB, of which
- * a base that uses push, next and tick links about 0.7 KB; level 2 about 2.5 KB; level 1 about
- * 3.5 KB. Set CTRLBUS_DECODER_FAST=0 where flash matters more than cycles. */
+ * instructions per byte at -O2 (level 1) and 25 at -Os (level 2), against about 68 at level 0;
+ * ctrlbus_decoder_take() on the same chunks about 3.2 (inlined) and 10. Code on a Cortex-M0+ at
+ * -Os (arm-none-eabi-gcc, frame.c's whole decoder): level 0 about 1.0 KB, of which a base that
+ * uses push, next and tick links about 0.7 KB; level 2 about 1.7 KB (1.6 KB linked into the
+ * default base); level 1 about 3.5 KB. Set CTRLBUS_DECODER_FAST=0 where flash matters more than
+ * cycles. */
 size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, size_t len,
                             uint32_t now_ms);
 
@@ -355,9 +359,10 @@ static inline uint8_t ctrlbus_xor_in_place_(const uint8_t *bytes, uint32_t n)
  * the start of one and a garbage run are settled by ctrlbus_decoder_take_slow() in one step each
  * (a copy into the buffer); failures and the rescan after them take the feed's path (see
  * ctrlbus_decoder_feed()). Over a Core<->base session in 64-byte chunks about 3.2 instructions
- * per byte at -O2 and 7 at -Os on x86-64, the caller's loop included (docs/performance.md).
- * Without the bulk path (CTRLBUS_DECODER_FAST 0) it is the feed loop, but for the inline case
- * (CTRLBUS_DECODER_INLINE). ctrlbus_decoder_take_slow() is the same function
+ * per byte at -O2 and 10 at -Os on x86-64, the caller's loop included (docs/performance.md).
+ * At level 2 (CTRLBUS_DECODER_FAST 2) take_slow() settles only the in-place frame and a frame's
+ * start in one step; the rest is the feed loop. At level 0 it is the feed loop, but for the
+ * inline case (CTRLBUS_DECODER_INLINE). ctrlbus_decoder_take_slow() is the same function
  * without the inline path, with the same contract: call ctrlbus_decoder_take(). */
 ctrlbus_rx_t ctrlbus_decoder_take_slow(ctrlbus_decoder_t *decoder, const uint8_t **data,
                                        size_t *len, uint32_t now_ms, ctrlbus_frame_t *frame);
@@ -427,17 +432,17 @@ static inline ctrlbus_rx_t ctrlbus_decoder_take(ctrlbus_decoder_t *decoder, cons
  * (as ctrlbus_decoder_feed()).
  *
  * Cost: a byte inside a frame whose length is known, stamped with the same millisecond as the
- * byte before it, takes the inline path below (two comparisons, a store, an XOR: about 10
+ * byte before it, takes the inline path below (two comparisons, a store and at level 1 an XOR: about 10
  * instructions where it is inlined, no call). Any other byte (a header byte, the last byte of a
  * frame, a new millisecond, garbage, a failure) calls ctrlbus_decoder_push_slow(), which settles
  * the frame's first and last bytes in a few dozen instructions and hands the rest to the general
  * path, whose cost is described at ctrlbus_decoder_feed(). With CTRLBUS_DECODER_INLINE (the
  * default unless optimising for size, below) a frame's header and last byte and quiet garbage take
- * inline paths too, and a clean frame makes no call at all. Over a Core<->base session that
- * averages about 18 instructions per byte at -O2 and 21 at -Os on x86-64, calls included
- * (bench/c/ctrlbus_parse.c; docs/performance.md). Without the bulk path (CTRLBUS_DECODER_FAST 0,
- * the smallest build) push has no inline path at all: each byte is a call of push_slow(), which is
- * a feed of that byte and a ctrlbus_decoder_next(). ctrlbus_decoder_push_slow() is the same function
+ * inline paths too (level 1 only), and a clean frame makes no call at all. Over a Core<->base
+ * session that averages about 18 instructions per byte at -O2 and 24 at -Os on x86-64, calls
+ * included (bench/c/ctrlbus_parse.c; docs/performance.md). At level 0 (CTRLBUS_DECODER_FAST 0, the
+ * smallest build) push has no inline path at all: each byte is a call of push_slow(), which is a
+ * feed of that byte and a ctrlbus_decoder_next(). ctrlbus_decoder_push_slow() is the same function
  * without the inline paths, with the same contract: call ctrlbus_decoder_push(). */
 ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte, uint32_t now_ms,
                                        ctrlbus_frame_t *frame);
@@ -457,10 +462,12 @@ static inline ctrlbus_rx_t ctrlbus_decoder_push(ctrlbus_decoder_t *decoder, uint
     if (end + 1u < complete_at && now_ms == decoder->last_byte_ms) {
         decoder->buffer[end] = byte;
         decoder->end = end + 1u;
+#if CTRLBUS_DECODER_FAST == 1 /* (level 2 checks a candidate once, when it is complete) */
         decoder->checksum = (uint8_t)(decoder->checksum ^ byte);
+#endif
         return CTRLBUS_RX_NONE;
     }
-#if CTRLBUS_DECODER_INLINE
+#if CTRLBUS_DECODER_INLINE && CTRLBUS_DECODER_FAST == 1
     if ((decoder->state & CTRLBUS_DECODER_WAITING_) == 0u && decoder->buffer != NULL) {
         uint8_t *buffer = decoder->buffer;
         if (end == 0u) {
