@@ -667,6 +667,14 @@ static ctrlbus_rx_t apply_timeout(ctrlbus_decoder_t *d, uint32_t now_ms)
  * safe at any alignment; the tail is taken in halves (4, 2, 1 bytes). */
 IN_LINE static uint8_t copy_xor(uint8_t *dst, const uint8_t *src, size_t n, uint8_t checksum)
 {
+#if !CTRLBUS_WORD_READS_
+    /* Without unaligned loads (Cortex-M0) each memcpy below is a call: bytes are cheaper. */
+    for (; n != 0; n--) {
+        *dst++ = *src;
+        checksum ^= *src++;
+    }
+    return checksum;
+#else
     if (n >= 2u) {
         size_t acc = 0; /* the XOR of the bytes taken, lane by lane */
         while (n >= sizeof acc) {
@@ -706,6 +714,7 @@ IN_LINE static uint8_t copy_xor(uint8_t *dst, const uint8_t *src, size_t n, uint
         checksum ^= *src;
     }
     return checksum;
+#endif
 }
 
 /* take_bulk()'s word for "complete, but not a frame with a command: scan() settles it". */

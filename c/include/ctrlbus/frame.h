@@ -308,13 +308,23 @@ size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, siz
 #define CTRLBUS_DECODER_EMPTY_CLEARS_ 0x68u
 #define CTRLBUS_DECODER_LONG_HEADER_ARMED_ 3u
 
+/* Private: whether a machine word may be read at any alignment with a plain load. Not on ARMv6-M
+ * (Cortex-M0/M0+) and other ARM cores without unaligned access: there memcpy of a word is a call,
+ * slower than reading bytes and one more stack frame. */
+#if defined(__arm__) && !defined(__ARM_FEATURE_UNALIGNED)
+#define CTRLBUS_WORD_READS_ 0
+#else
+#define CTRLBUS_WORD_READS_ 1
+#endif
+
 /* Private: the XOR of bytes[0..n), read a machine word (size_t) at a time through memcpy (safe at
- * any alignment; compilers make plain loads of it), then 4 bytes, then byte by byte. */
+ * any alignment; compilers make plain loads of it), then 4 bytes, then byte by byte; byte by byte
+ * only where words cannot be read unaligned (CTRLBUS_WORD_READS_). */
 static inline uint8_t ctrlbus_xor_in_place_(const uint8_t *bytes, uint32_t n)
 {
     size_t acc = 0; /* the XOR of the bytes read, lane by lane */
     const uint8_t *end = bytes + n;
-    for (; (size_t)(end - bytes) >= sizeof acc; bytes += sizeof acc) {
+    for (; CTRLBUS_WORD_READS_ && (size_t)(end - bytes) >= sizeof acc; bytes += sizeof acc) {
         size_t word;
         memcpy(&word, bytes, sizeof word);
         acc ^= word;
