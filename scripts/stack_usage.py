@@ -31,6 +31,9 @@ from pathlib import Path
 
 _FUNCTION = re.compile(r"^[0-9a-f]+ <([^>]+)>:$")
 _REFERENCE = re.compile(r"<([A-Za-z_.$][\w.$]*)(?:[+-]0x[0-9a-f]+)?>")
+# AVR's conditional branches (breq, brne, brcc, ...) stay inside a function: gcc never makes them
+# tail calls, and libgcc's division loops branch between local labels that look like functions.
+_BRANCH_AVR = re.compile(r"\tbr[a-z]{2}\s")
 _INDIRECT = re.compile(r"\t(blx\s+r\d+|jalr\s|c\.jalr\s|icall|eicall)\b")
 _PUSH_ARM = re.compile(r"\tpush\s+\{([^}]*)\}")
 _SUB_SP_ARM = re.compile(r"\tsub\s+sp,\s*#(\d+)")
@@ -82,6 +85,8 @@ def main() -> int:
     for name, body in bodies.items():
         callees: set[str] = set()
         for line in body:
+            if _BRANCH_AVR.search(line):
+                continue
             for ref in _REFERENCE.findall(line):
                 if ref != name and ref in bodies:
                     callees.add(ref)

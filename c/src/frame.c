@@ -1187,7 +1187,7 @@ size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, siz
          * that a scan looks at: they go in as one run, scanned once. */
         size_t run = 1u;
         if (d->complete_at > d->end) {
-            run = d->complete_at - d->end;
+            run = (size_t)(d->complete_at - d->end); /* at most max_frame, which fits a size_t */
             if (run > len - used) {
                 run = len - used;
             }
