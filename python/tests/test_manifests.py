@@ -175,7 +175,8 @@ def test_every_library_switch_has_a_kconfig_option(tmp_path: Path) -> None:
 def test_zephyr_build_with_the_defaults(tmp_path: Path) -> None:
     options = ctrlbus_options(zephyr_kconfig(tmp_path))
     assert options.pop("CTRLBUS_CONFIG_HEADER") == ""
-    assert set(options.values()) == {"y"}, options  # the full library, as without Kconfig
+    assert options["CTRLBUS_DECODER_FAST"] == "1"  # the library's own default at -O2
+    assert {v for k, v in options.items() if k != "CTRLBUS_DECODER_FAST"} == {"y"}, options
     calls = run_with_stand_ins(
         tmp_path,
         REPO / "zephyr" / "CMakeLists.txt",
@@ -194,14 +195,27 @@ def test_zephyr_options_turn_switches_off(tmp_path: Path) -> None:
         tmp_path, SIZE_OPTIMIZATIONS="y", CTRLBUS_HEALTH="n", CTRLBUS_CONFIG_HEADER="board_ctrlbus.h"
     )
     options = ctrlbus_options(kconfig)
-    assert options["CTRLBUS_DECODER_FAST"] == "n"  # size-optimised: the library's own default
+    assert options["CTRLBUS_DECODER_FAST"] == "2"  # size-optimised: the library's own -Os default
     variables = {f"CONFIG_{k}": v for k, v in options.items() if v != "n"}
     calls = run_with_stand_ins(
         tmp_path, REPO / "zephyr" / "CMakeLists.txt", {"CONFIG_CTRLBUS": "y", **variables}
     )
     assert "CTRLBUS_CONFIG_HEALTH=0" in calls["define"] and "CTRLBUS_CONFIG_LIMITS=1" in calls["define"]
     assert 'CTRLBUS_CONFIG_HEADER="board_ctrlbus.h"' in calls["define"]
-    assert calls["library_define"] == ["CTRLBUS_DECODER_FAST=0"]
+    assert calls["library_define"] == ["CTRLBUS_DECODER_FAST=2"]
+
+
+def test_zephyr_decoder_level_is_one_of_the_three(tmp_path: Path) -> None:
+    for level in ("0", "1", "2"):
+        options = ctrlbus_options(zephyr_kconfig(tmp_path, CTRLBUS_DECODER_FAST=level))
+        variables = {f"CONFIG_{k}": v for k, v in options.items() if v != "n"}
+        calls = run_with_stand_ins(
+            tmp_path, REPO / "zephyr" / "CMakeLists.txt", {"CONFIG_CTRLBUS": "y", **variables}
+        )
+        assert calls["library_define"] == [f"CTRLBUS_DECODER_FAST={level}"]
+    kconfig = zephyr_kconfig(tmp_path)
+    kconfig.syms["CTRLBUS_DECODER_FAST"].set_value("3")  # outside the range: not taken
+    assert ctrlbus_options(kconfig)["CTRLBUS_DECODER_FAST"] == "1"
 
 
 def test_zephyr_builds_nothing_without_config_ctrlbus(tmp_path: Path) -> None:
