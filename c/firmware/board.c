@@ -2,8 +2,8 @@
 /* Board support for mps2-an385: SysTick millisecond clock and the CMSDK UART0 driver. */
 #include "board.h"
 
+#include "cortex_m.h"
 #include "mps2_an385.h"
-#include "vectors.h"
 
 /* Firmware-wide state shared with the interrupt handlers; the library itself has none. */
 static board_rx_handler_t uart_rx_handler;
@@ -20,6 +20,11 @@ static uint32_t clock_ms;
 
 #define UART_BAUD 115200u
 
+/* The shared vector table (../ports/cortex_m/startup.c) is sized and wired by the Makefile's
+ * PORT_IRQ_COUNT and PORT_UART_IRQN: they must be this board's. */
+typedef char irq_count_is_the_boards[PORT_IRQ_COUNT == MPS2_IRQ_COUNT ? 1 : -1];
+typedef char uart_irq_is_uart0_rx[PORT_UART_IRQN == MPS2_UART0_RX_IRQN ? 1 : -1];
+
 void board_init(board_rx_handler_t rx_handler, void *context)
 {
     uart_rx_handler = rx_handler;
@@ -30,14 +35,11 @@ void board_init(board_rx_handler_t rx_handler, void *context)
     CMSDK_TIMER_CTRL(MPS2_TIMER0_BASE) = CMSDK_TIMER_CTRL_ENABLE;
     clock_last_value = 0xFFFFFFFFu;
 
-    SYST_RVR = CYCLES_PER_MS - 1u;
-    SYST_CVR = 0;
-    SYST_CSR = SYST_CSR_CLKSOURCE_CPU | SYST_CSR_TICKINT | SYST_CSR_ENABLE;
+    cortex_m_start_tick(CYCLES_PER_MS);
 
     CMSDK_UART_BAUDDIV(MPS2_UART0_BASE) = MPS2_SYSCLK_HZ / UART_BAUD;
     CMSDK_UART_CTRL(MPS2_UART0_BASE) = CMSDK_UART_CTRL_TX_EN | CMSDK_UART_CTRL_RX_EN | CMSDK_UART_CTRL_RX_IRQ_EN;
-    NVIC_ICPR0 = 1u << MPS2_UART0_RX_IRQN;
-    NVIC_ISER0 = 1u << MPS2_UART0_RX_IRQN;
+    cortex_m_enable_irq(MPS2_UART0_RX_IRQN);
 }
 
 uint32_t board_now_ms(void)
@@ -54,12 +56,12 @@ uint32_t board_now_ms(void)
     return clock_ms;
 }
 
-void systick_handler(void)
+void port_systick_handler(void)
 {
     /* Nothing to do: the tick only wakes the main loop from board_wait_for_interrupt(). */
 }
 
-void uart0_rx_handler(void)
+void port_uart_irq_handler(void)
 {
     /* Clear the interrupt before draining, so a byte that lands after the last read raises it
      * again instead of being left unnoticed in the holding register. */
@@ -83,7 +85,7 @@ void board_uart_write(const uint8_t *data, size_t size)
 
 void board_wait_for_interrupt(void)
 {
-    __asm__ volatile("wfi" ::: "memory");
+    cortex_m_wait_for_interrupt();
 }
 
 void board_reset(void)

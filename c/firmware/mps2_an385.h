@@ -50,16 +50,7 @@
 #define CMSDK_TIMER_RELOAD(base) MPS2_REG((base) + 0x08u)
 #define CMSDK_TIMER_CTRL_ENABLE 0x1u
 
-/* Cortex-M3 system control space. */
-#define SYST_CSR MPS2_REG(0xE000E010u)
-#define SYST_RVR MPS2_REG(0xE000E014u)
-#define SYST_CVR MPS2_REG(0xE000E018u)
-#define SYST_CSR_ENABLE 0x1u
-#define SYST_CSR_TICKINT 0x2u
-#define SYST_CSR_CLKSOURCE_CPU 0x4u
-
-#define NVIC_ISER0 MPS2_REG(0xE000E100u)
-#define NVIC_ICPR0 MPS2_REG(0xE000E280u)
+/* The core's SysTick and NVIC registers: ../ports/cortex_m/cortex_m.h. */
 
 /* Application interrupt and reset control: writing VECTKEY | SYSRESETREQ resets the chip. */
 #define SCB_AIRCR MPS2_REG(0xE000ED0Cu)
