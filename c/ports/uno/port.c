@@ -17,6 +17,7 @@
  *     small receive ring overflows (on the wire a byte takes 87 us, 1390 cycles), and an
  *     interrupt raised while the main loop has interrupts off (the Timer1 read below) is only
  *     taken when the next one comes.
+ * (The chip image, with both, runs under simavr: uno/simavr_uno.c.)
  * So the QEMU image spins instead of sleeping, and receives by polling: port_idle() moves what the
  * USART holds into the stack, at most RX_POLL_BATCH bytes per main-loop turn, and QEMU keeps the
  * rest waiting in the host, as it does while UDR0 is full. (Pacing the receive interrupt instead,
