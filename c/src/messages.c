@@ -41,19 +41,24 @@ typedef char counts_fit_six_bits
     [POSITION_WORDS < 64u && CTRLBUS_SENSOR_CHANNELS < 64u && CTRLBUS_HEALTH_MESSAGE_LEN < 64u ? 1
                                                                                               : -1];
 
-/* Whether text (up to its NUL, at most max_chars characters) can be written as a text field:
- * ASCII, and not longer than max_chars. */
-static bool text_ok(const char *text, size_t array_size, size_t max_chars)
+/* `size` if a char array holds a text that can be written as a text field: a NUL ends it within
+ * the array and ASCII characters come before it (every text array has room for its field's
+ * characters and the NUL, no more: checked below). Else CTRLBUS_ERR_ARGUMENT. */
+static int32_t text_checked(const char *text, size_t array_size, int32_t size)
 {
-    size_t len = 0;
-    while (len < array_size && text[len] != '\0') {
-        if ((unsigned char)text[len] > 0x7Fu) {
-            return false;
-        }
-        len++;
-    }
-    return len <= max_chars;
+    unsigned c;
+    do { /* up to the NUL or a character that is not ASCII (an array is never empty) */
+        c = (unsigned char)*text++;
+    } while (c - 1u < 0x7Fu && --array_size != 0u);
+    return c == 0u ? size : CTRLBUS_ERR_ARGUMENT;
 }
+typedef char text_arrays_hold_their_field_and_a_nul
+    [sizeof(((ctrlbus_connect_base_answer_t *)0)->model) == CTRLBUS_MODEL_LEN + 1u &&
+             sizeof(((ctrlbus_connect_base_answer_t *)0)->firmware_version_suffix) ==
+                 CTRLBUS_FIRMWARE_VERSION_SUFFIX_LEN + 1u &&
+             sizeof(((ctrlbus_health_get_error_answer_t *)0)->message) == CTRLBUS_HEALTH_MESSAGE_LEN
+         ? 1
+         : -1];
 
 /* ---- requests ------------------------------------------------------------------------------- */
 
@@ -313,14 +318,15 @@ static int32_t bytes_size(const uint8_t *bytes, size_t len)
 
 int32_t ctrlbus_connect_base_answer_size(const ctrlbus_connect_base_answer_t *a)
 {
-    if (a == NULL || !text_ok(a->model, sizeof a->model, CTRLBUS_MODEL_LEN) ||
-        (a->has_firmware_version_suffix &&
-         !text_ok(a->firmware_version_suffix, sizeof a->firmware_version_suffix,
-                  CTRLBUS_FIRMWARE_VERSION_SUFFIX_LEN))) {
+    if (a == NULL) {
         return CTRLBUS_ERR_ARGUMENT;
     }
-    return a->has_firmware_version_suffix ? CTRLBUS_CONNECT_BASE_ANSWER_SIZE_WITH_SUFFIX
-                                          : CTRLBUS_CONNECT_BASE_ANSWER_SIZE;
+    int32_t size = text_checked(a->model, sizeof a->model, CTRLBUS_CONNECT_BASE_ANSWER_SIZE);
+    if (size > 0 && a->has_firmware_version_suffix) {
+        size = text_checked(a->firmware_version_suffix, sizeof a->firmware_version_suffix,
+                            CTRLBUS_CONNECT_BASE_ANSWER_SIZE_WITH_SUFFIX);
+    }
+    return size;
 }
 
 const ctrlbus_codec_field_t ctrlbus_codec_connect_base_layout[] CODEC_ROM = {
@@ -631,11 +637,9 @@ int32_t ctrlbus_health_get_health_answer_write(ctrlbus_sink_t *sink,
 int32_t ctrlbus_health_get_error_answer_size(const ctrlbus_health_get_error_answer_t *a)
 {
     /* The wire field keeps a NUL, so the message holds at most 31 characters. */
-    if (a == NULL ||
-        !text_ok(a->message, sizeof a->message, CTRLBUS_HEALTH_MESSAGE_LEN - 1u)) {
-        return CTRLBUS_ERR_ARGUMENT;
-    }
-    return CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE;
+    return a != NULL ? text_checked(a->message, sizeof a->message,
+                                    CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE)
+                     : CTRLBUS_ERR_ARGUMENT;
 }
 
 const ctrlbus_codec_field_t ctrlbus_codec_health_get_error_layout[] CODEC_ROM = {
