@@ -42,8 +42,8 @@ typedef char counts_fit_six_bits
                                                                                               : -1];
 
 /* `size` if a char array holds a text that can be written as a text field: a NUL ends it within
- * the array and ASCII characters come before it (every text array has room for its field's
- * characters and the NUL, no more: checked below). Else CTRLBUS_ERR_ARGUMENT. */
+ * the array and ASCII characters come before it (every text array is one byte longer than the
+ * most characters its field takes: checked below). Else CTRLBUS_ERR_ARGUMENT. */
 static int32_t text_checked(const char *text, size_t array_size, int32_t size)
 {
     unsigned c;
