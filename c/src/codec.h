@@ -129,21 +129,28 @@ int32_t ctrlbus_sink_finish(ctrlbus_sink_t *sink);
 /* ---- writing answers: what messages.c shares with the base stack --------------------------- */
 
 /* An answer layout: its fields in wire order, each read from the answer struct at `offset`:
- * a table walked by one writer (ctrlbus_codec_put_fields) instead of one function per layout. */
-typedef enum {    /* an integer kind is its width in bytes */
-    FIELD_END = 0, /* the table's end */
-    FIELD_U8 = 1,  /* `count` uint8_t (or bool) values */
-    FIELD_U16 = 2, /* `count` uint16_t values, little-endian */
-    FIELD_TEXT = 3, /* a char array: its text up to the NUL, zero-padded to `count` bytes */
-    FIELD_U32 = 4, /* `count` uint32_t or int32_t values, little-endian (two's complement) */
-    FIELD_BYTES = 5 /* a `const uint8_t *`: the rest of the payload, whatever its length */
-} ctrlbus_codec_field_kind_t;
+ * a table walked by one writer (ctrlbus_codec_put_fields) instead of one function per layout.
+ * Two bytes a field and no end mark: the size the answer's check gave ends the walk (it never
+ * exceeds what the fields hold; a shorter size drops the optional tail fields, or cuts the
+ * bumper word short). A field's shape byte is its count << 2 | its kind; count 0 is the BYTES
+ * field, always last. */
+typedef enum {
+    FIELD_U8 = 0,  /* `count` uint8_t (or bool) values */
+    FIELD_U16 = 1, /* `count` uint16_t values, little-endian */
+    FIELD_U32 = 2, /* `count` uint32_t or int32_t values, little-endian (two's complement) */
+    FIELD_TEXT = 3 /* a char array: its text up to the NUL, zero-padded to `count` bytes */
+} ctrlbus_codec_field_kind_t; /* an integer kind is log2 of its width */
 
 typedef struct {
-    uint8_t kind; /* ctrlbus_codec_field_kind_t */
-    uint8_t count;
     uint8_t offset; /* offsetof the member in the layout's struct */
+    uint8_t shape;  /* count << 2 | kind (ctrlbus_codec_field_kind_t); 0: a BYTES field */
 } ctrlbus_codec_field_t;
+
+/* `count` (1..63) values of `kind` in `member` of `type`. */
+#define CODEC_FIELD(type, member, kind, count) \
+    {(uint8_t)offsetof(type, member), (uint8_t)((count) << 2 | (kind))}
+/* A `const uint8_t *` member: the rest of the payload, whatever its length. */
+#define CODEC_FIELD_BYTES(type, member) {(uint8_t)offsetof(type, member), 0u}
 
 typedef const ctrlbus_codec_field_t *ctrlbus_codec_layout_t;
 

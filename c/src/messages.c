@@ -26,26 +26,39 @@ typedef char runs_are_contiguous
     [FOLLOWS(ctrlbus_connect_base_answer_t, firmware_version, hardware_version, 2u) &&
              FOLLOWS(ctrlbus_get_base_motor_data_answer_t, left_distance_mm, right_distance_mm, 4u) &&
              FOLLOWS(ctrlbus_set_v_and_get_deadreckon_answer_t, dx_mm_q16, dy_mm_q16, 4u) &&
-             FOLLOWS(ctrlbus_set_v_and_get_deadreckon_answer_t, dy_mm_q16, dtheta_deg_q16, 4u)
+             FOLLOWS(ctrlbus_set_v_and_get_deadreckon_answer_t, dy_mm_q16, dtheta_deg_q16, 4u) &&
+             FOLLOWS(ctrlbus_get_base_conf_answer_t, motor_type, sensor_num, 1u) &&
+             FOLLOWS(ctrlbus_get_base_status_answer_t, battery_percent, power_status, 1u) &&
+             FOLLOWS(ctrlbus_get_charger_data_answer_t, beacon_count, probe_count, 1u) &&
+             FOLLOWS(ctrlbus_health_get_health_answer_t, flags, error_count, 1u)
          ? 1
          : -1];
 
-/* Every field offset of a layout fits a byte (the largest: GET_BASE_CONF's bumpers). */
+/* Every field offset of a layout fits a byte (the largest: GET_BASE_CONF's bumpers), every
+ * count its six bits (the largest: a run of positions, a health message). */
 typedef char offsets_fit_a_byte[offsetof(ctrlbus_get_base_conf_answer_t, bumpers) < 256u ? 1 : -1];
+typedef char counts_fit_six_bits
+    [POSITION_WORDS < 64u && CTRLBUS_SENSOR_CHANNELS < 64u && CTRLBUS_HEALTH_MESSAGE_LEN < 64u ? 1
+                                                                                              : -1];
 
-/* Whether text (up to its NUL, at most max_chars characters) can be written as a text field:
- * ASCII, and not longer than max_chars. */
-static bool text_ok(const char *text, size_t array_size, size_t max_chars)
+/* `size` if a char array holds a text that can be written as a text field: a NUL ends it within
+ * the array and ASCII characters come before it (every text array is one byte longer than the
+ * most characters its field takes: checked below). Else CTRLBUS_ERR_ARGUMENT. */
+static int32_t text_checked(const char *text, size_t array_size, int32_t size)
 {
-    size_t len = 0;
-    while (len < array_size && text[len] != '\0') {
-        if ((unsigned char)text[len] > 0x7Fu) {
-            return false;
-        }
-        len++;
-    }
-    return len <= max_chars;
+    unsigned c;
+    do { /* up to the NUL or a character that is not ASCII (an array is never empty) */
+        c = (unsigned char)*text++;
+    } while (c - 1u < 0x7Fu && --array_size != 0u);
+    return c == 0u ? size : CTRLBUS_ERR_ARGUMENT;
 }
+typedef char text_arrays_hold_their_field_and_a_nul
+    [sizeof(((ctrlbus_connect_base_answer_t *)0)->model) == CTRLBUS_MODEL_LEN + 1u &&
+             sizeof(((ctrlbus_connect_base_answer_t *)0)->firmware_version_suffix) ==
+                 CTRLBUS_FIRMWARE_VERSION_SUFFIX_LEN + 1u &&
+             sizeof(((ctrlbus_health_get_error_answer_t *)0)->message) == CTRLBUS_HEALTH_MESSAGE_LEN
+         ? 1
+         : -1];
 
 /* ---- requests ------------------------------------------------------------------------------- */
 
@@ -206,7 +219,8 @@ int32_t ctrlbus_request_decode(ctrlbus_request_t *out, uint8_t cmd, const uint8_
 /* The one field writer: walks a layout's fields until `size` bytes are out (the size, checked
  * before, decides the optional tail fields and the short bumper form). A run of integers goes
  * out straight from the struct where the host is little-endian (one write call), value by value
- * elsewhere; text goes byte by byte (zeros after its NUL), so no deeper writer is on the stack. */
+ * elsewhere; text goes byte by byte (its NUL repeated once reached: zeros after it), so no
+ * deeper writer is on the stack. */
 void ctrlbus_codec_put_fields(ctrlbus_sink_t *sink, ctrlbus_codec_layout_t layout,
                               const void *answer, size_t size)
 {
@@ -214,28 +228,36 @@ void ctrlbus_codec_put_fields(ctrlbus_sink_t *sink, ctrlbus_codec_layout_t layou
         ctrlbus_sink_emit(sink, answer, size);
         return;
     }
-    for (uint8_t kind; size > 0u && (kind = CODEC_ROM_BYTE(&layout->kind)) != FIELD_END;
-         layout++) {
+    for (; size > 0u; layout++) {
         const uint8_t *at = (const uint8_t *)answer + CODEC_ROM_BYTE(&layout->offset);
-        size_t count = CODEC_ROM_BYTE(&layout->count);
-        if (kind == FIELD_BYTES) {
-            ctrlbus_sink_emit(sink, *(const uint8_t *const *)(const void *)at, size);
-            return; /* the rest of the payload */
-        }
+        uint8_t shape = CODEC_ROM_BYTE(&layout->shape);
+        size_t count = (size_t)(shape >> 2);
+        uint8_t kind = (uint8_t)(shape & 3u);
 #if CODEC_HOST_LITTLE_ENDIAN
-        if (kind != FIELD_TEXT) {
-            /* The run of integers is already in wire order in memory: one call for all. */
-            size_t run = count * kind < size ? count * kind : size;
-            ctrlbus_sink_emit(sink, at, run);
-            size -= run;
+        if (kind == FIELD_TEXT) {
+            for (; count > 0u && size > 0u; count--, size--) {
+                ctrlbus_sink_emit(sink, at, 1);
+                if (*at != 0u) {
+                    at++; /* stays on the NUL once reached */
+                }
+            }
             continue;
         }
-        for (uint8_t byte = 1; count > 0u && size > 0u; count--, size--, at++) {
-            byte = byte != 0u ? *at : 0u; /* zeros after the text's NUL */
-            ctrlbus_sink_emit(sink, &byte, 1);
+        /* A run of integers is already in wire order in memory: one call for all. */
+        size_t run = count << kind;
+        if (run == 0u) { /* BYTES: the rest of the payload */
+            at = *(const uint8_t *const *)(const void *)at;
+            run = size;
         }
+        run = run < size ? run : size; /* an answer may end inside a field */
+        ctrlbus_sink_emit(sink, at, run);
+        size -= run;
 #else
-        size_t width = kind == FIELD_TEXT ? 1u : kind;
+        if (count == 0u) { /* BYTES: the rest of the payload */
+            ctrlbus_sink_emit(sink, *(const uint8_t *const *)(const void *)at, size);
+            return;
+        }
+        size_t width = kind == FIELD_TEXT ? 1u : (size_t)1u << kind;
         bool text_ended = false;
         for (; count > 0u && size > 0u; count--, at += width) {
             uint32_t value = width == 4u   ? *(const uint32_t *)(const void *)at
@@ -296,23 +318,23 @@ static int32_t bytes_size(const uint8_t *bytes, size_t len)
 
 int32_t ctrlbus_connect_base_answer_size(const ctrlbus_connect_base_answer_t *a)
 {
-    if (a == NULL || !text_ok(a->model, sizeof a->model, CTRLBUS_MODEL_LEN) ||
-        (a->has_firmware_version_suffix &&
-         !text_ok(a->firmware_version_suffix, sizeof a->firmware_version_suffix,
-                  CTRLBUS_FIRMWARE_VERSION_SUFFIX_LEN))) {
+    if (a == NULL) {
         return CTRLBUS_ERR_ARGUMENT;
     }
-    return a->has_firmware_version_suffix ? CTRLBUS_CONNECT_BASE_ANSWER_SIZE_WITH_SUFFIX
-                                          : CTRLBUS_CONNECT_BASE_ANSWER_SIZE;
+    int32_t size = text_checked(a->model, sizeof a->model, CTRLBUS_CONNECT_BASE_ANSWER_SIZE);
+    if (size > 0 && a->has_firmware_version_suffix) {
+        size = text_checked(a->firmware_version_suffix, sizeof a->firmware_version_suffix,
+                            CTRLBUS_CONNECT_BASE_ANSWER_SIZE_WITH_SUFFIX);
+    }
+    return size;
 }
 
 const ctrlbus_codec_field_t ctrlbus_codec_connect_base_layout[] CODEC_ROM = {
-    {FIELD_TEXT, CTRLBUS_MODEL_LEN, (uint8_t)offsetof(ctrlbus_connect_base_answer_t, model)},
-    {FIELD_U16, 2, (uint8_t)offsetof(ctrlbus_connect_base_answer_t, firmware_version)}, /* + hw */
-    {FIELD_U32, CTRLBUS_SERIAL_WORDS, (uint8_t)offsetof(ctrlbus_connect_base_answer_t, serial)},
+    CODEC_FIELD(ctrlbus_connect_base_answer_t, model, FIELD_TEXT, CTRLBUS_MODEL_LEN),
+    CODEC_FIELD(ctrlbus_connect_base_answer_t, firmware_version, FIELD_U16, 2), /* + hw */
+    CODEC_FIELD(ctrlbus_connect_base_answer_t, serial, FIELD_U32, CTRLBUS_SERIAL_WORDS),
     /* only in the 39-byte form: the size ends the walk before it */
-    {FIELD_TEXT, CTRLBUS_FIRMWARE_VERSION_SUFFIX_LEN, (uint8_t)offsetof(ctrlbus_connect_base_answer_t, firmware_version_suffix)},
-    {FIELD_END, 0, 0},
+    CODEC_FIELD(ctrlbus_connect_base_answer_t, firmware_version_suffix, FIELD_TEXT, CTRLBUS_FIRMWARE_VERSION_SUFFIX_LEN),
 };
 
 void ctrlbus_connect_base_answer_put(ctrlbus_sink_t *sink, const ctrlbus_connect_base_answer_t *a)
@@ -339,15 +361,13 @@ int32_t ctrlbus_get_base_conf_answer_size(const ctrlbus_get_base_conf_answer_t *
 }
 
 const ctrlbus_codec_field_t ctrlbus_codec_get_base_conf_layout[] CODEC_ROM = {
-    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_base_conf_answer_t, base_type)},
-    {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_get_base_conf_answer_t, base_radius_mm_q8)},
-    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_base_conf_answer_t, motor_type)},
-    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_base_conf_answer_t, sensor_num)},
+    CODEC_FIELD(ctrlbus_get_base_conf_answer_t, base_type, FIELD_U8, 1),
+    CODEC_FIELD(ctrlbus_get_base_conf_answer_t, base_radius_mm_q8, FIELD_U32, 1),
+    CODEC_FIELD(ctrlbus_get_base_conf_answer_t, motor_type, FIELD_U8, 2), /* + sensor_num */
     /* a position is four 32-bit words: the slots are one run of words */
-    {FIELD_U32, POSITION_WORDS, (uint8_t)offsetof(ctrlbus_get_base_conf_answer_t, sensors)},
-    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_base_conf_answer_t, bumper_num)},
-    {FIELD_U32, POSITION_WORDS, (uint8_t)offsetof(ctrlbus_get_base_conf_answer_t, bumpers)},
-    {FIELD_END, 0, 0},
+    CODEC_FIELD(ctrlbus_get_base_conf_answer_t, sensors, FIELD_U32, POSITION_WORDS),
+    CODEC_FIELD(ctrlbus_get_base_conf_answer_t, bumper_num, FIELD_U8, 1),
+    CODEC_FIELD(ctrlbus_get_base_conf_answer_t, bumpers, FIELD_U32, POSITION_WORDS),
 };
 
 void ctrlbus_get_base_conf_answer_put(ctrlbus_sink_t *sink, const ctrlbus_get_base_conf_answer_t *a)
@@ -371,8 +391,7 @@ static int32_t get_base_conf_adv_size(const ctrlbus_get_base_conf_adv_answer_t *
 }
 
 static const ctrlbus_codec_field_t get_base_conf_adv_layout[] CODEC_ROM = {
-    {FIELD_BYTES, 0, (uint8_t)offsetof(ctrlbus_get_base_conf_adv_answer_t, blob)},
-    {FIELD_END, 0, 0},
+    CODEC_FIELD_BYTES(ctrlbus_get_base_conf_adv_answer_t, blob),
 };
 
 void ctrlbus_get_base_conf_adv_answer_put(ctrlbus_sink_t *sink,
@@ -392,9 +411,7 @@ int32_t ctrlbus_get_base_conf_adv_answer_write(ctrlbus_sink_t *sink,
 /* GET_BASE_STATUS */
 
 const ctrlbus_codec_field_t ctrlbus_codec_get_base_status_layout[] CODEC_ROM = {
-    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_base_status_answer_t, battery_percent)},
-    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_base_status_answer_t, power_status)},
-    {FIELD_END, 0, 0},
+    CODEC_FIELD(ctrlbus_get_base_status_answer_t, battery_percent, FIELD_U8, 2), /* + power_status */
 };
 
 void ctrlbus_get_base_status_answer_put(ctrlbus_sink_t *sink,
@@ -415,9 +432,8 @@ int32_t ctrlbus_get_base_status_answer_write(ctrlbus_sink_t *sink,
 /* GET_BASE_MOTOR_DATA */
 
 const ctrlbus_codec_field_t ctrlbus_codec_get_base_motor_data_layout[] CODEC_ROM = {
-    {FIELD_U32, 2, (uint8_t)offsetof(ctrlbus_get_base_motor_data_answer_t, left_distance_mm)},
-    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_base_motor_data_answer_t, status)},
-    {FIELD_END, 0, 0},
+    CODEC_FIELD(ctrlbus_get_base_motor_data_answer_t, left_distance_mm, FIELD_U32, 2),
+    CODEC_FIELD(ctrlbus_get_base_motor_data_answer_t, status, FIELD_U8, 1),
 };
 
 void ctrlbus_get_base_motor_data_answer_put(ctrlbus_sink_t *sink,
@@ -438,8 +454,7 @@ int32_t ctrlbus_get_base_motor_data_answer_write(ctrlbus_sink_t *sink,
 /* GET_BASE_SENSOR_DATA */
 
 const ctrlbus_codec_field_t ctrlbus_codec_get_base_sensor_data_layout[] CODEC_ROM = {
-    {FIELD_U32, CTRLBUS_SENSOR_CHANNELS, (uint8_t)offsetof(ctrlbus_get_base_sensor_data_answer_t, distances_mm_q16)},
-    {FIELD_END, 0, 0},
+    CODEC_FIELD(ctrlbus_get_base_sensor_data_answer_t, distances_mm_q16, FIELD_U32, CTRLBUS_SENSOR_CHANNELS),
 };
 
 void ctrlbus_get_base_sensor_data_answer_put(ctrlbus_sink_t *sink,
@@ -473,8 +488,7 @@ int32_t ctrlbus_get_base_bumper_data_answer_size(const ctrlbus_get_base_bumper_d
 
 const ctrlbus_codec_field_t ctrlbus_codec_get_base_bumper_data_layout[] CODEC_ROM = {
     /* payload_size (1..4) low bytes of the bitmap: the size cuts the word short */
-    {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_get_base_bumper_data_answer_t, bitmap)},
-    {FIELD_END, 0, 0},
+    CODEC_FIELD(ctrlbus_get_base_bumper_data_answer_t, bitmap, FIELD_U32, 1),
 };
 
 void ctrlbus_get_base_bumper_data_answer_put(ctrlbus_sink_t *sink,
@@ -503,10 +517,8 @@ int32_t ctrlbus_get_charger_data_answer_size(const ctrlbus_get_charger_data_answ
 }
 
 const ctrlbus_codec_field_t ctrlbus_codec_get_charger_data_layout[] CODEC_ROM = {
-    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_charger_data_answer_t, beacon_count)},
-    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_get_charger_data_answer_t, probe_count)},
-    {FIELD_BYTES, 0, (uint8_t)offsetof(ctrlbus_get_charger_data_answer_t, probes)},
-    {FIELD_END, 0, 0},
+    CODEC_FIELD(ctrlbus_get_charger_data_answer_t, beacon_count, FIELD_U8, 2), /* + probe_count */
+    CODEC_FIELD_BYTES(ctrlbus_get_charger_data_answer_t, probes),
 };
 
 void ctrlbus_get_charger_data_answer_put(ctrlbus_sink_t *sink,
@@ -537,11 +549,10 @@ int32_t ctrlbus_set_v_and_get_deadreckon_answer_size(
 }
 
 const ctrlbus_codec_field_t ctrlbus_codec_set_v_and_get_deadreckon_layout[] CODEC_ROM = {
-    {FIELD_U32, 3, (uint8_t)offsetof(ctrlbus_set_v_and_get_deadreckon_answer_t, dx_mm_q16)},
-    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_set_v_and_get_deadreckon_answer_t, status)},
+    CODEC_FIELD(ctrlbus_set_v_and_get_deadreckon_answer_t, dx_mm_q16, FIELD_U32, 3),
+    CODEC_FIELD(ctrlbus_set_v_and_get_deadreckon_answer_t, status, FIELD_U8, 1),
     /* only in the 17-byte form: the size ends the walk before it */
-    {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_set_v_and_get_deadreckon_answer_t, timestamp_ms)},
-    {FIELD_END, 0, 0},
+    CODEC_FIELD(ctrlbus_set_v_and_get_deadreckon_answer_t, timestamp_ms, FIELD_U32, 1),
 };
 
 void ctrlbus_set_v_and_get_deadreckon_answer_put(
@@ -603,9 +614,7 @@ int32_t ctrlbus_poll_base_cmd_answer_write(ctrlbus_sink_t *sink,
 /* HEALTH_GET_HEALTH */
 
 const ctrlbus_codec_field_t ctrlbus_codec_health_get_health_layout[] CODEC_ROM = {
-    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_health_get_health_answer_t, flags)},
-    {FIELD_U8, 1, (uint8_t)offsetof(ctrlbus_health_get_health_answer_t, error_count)},
-    {FIELD_END, 0, 0},
+    CODEC_FIELD(ctrlbus_health_get_health_answer_t, flags, FIELD_U8, 2), /* + error_count */
 };
 
 void ctrlbus_health_get_health_answer_put(ctrlbus_sink_t *sink,
@@ -628,17 +637,14 @@ int32_t ctrlbus_health_get_health_answer_write(ctrlbus_sink_t *sink,
 int32_t ctrlbus_health_get_error_answer_size(const ctrlbus_health_get_error_answer_t *a)
 {
     /* The wire field keeps a NUL, so the message holds at most 31 characters. */
-    if (a == NULL ||
-        !text_ok(a->message, sizeof a->message, CTRLBUS_HEALTH_MESSAGE_LEN - 1u)) {
-        return CTRLBUS_ERR_ARGUMENT;
-    }
-    return CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE;
+    return a != NULL ? text_checked(a->message, sizeof a->message,
+                                    CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE)
+                     : CTRLBUS_ERR_ARGUMENT;
 }
 
 const ctrlbus_codec_field_t ctrlbus_codec_health_get_error_layout[] CODEC_ROM = {
-    {FIELD_U32, 1, (uint8_t)offsetof(ctrlbus_health_get_error_answer_t, error_code)},
-    {FIELD_TEXT, CTRLBUS_HEALTH_MESSAGE_LEN, (uint8_t)offsetof(ctrlbus_health_get_error_answer_t, message)},
-    {FIELD_END, 0, 0},
+    CODEC_FIELD(ctrlbus_health_get_error_answer_t, error_code, FIELD_U32, 1),
+    CODEC_FIELD(ctrlbus_health_get_error_answer_t, message, FIELD_TEXT, CTRLBUS_HEALTH_MESSAGE_LEN),
 };
 
 void ctrlbus_health_get_error_answer_put(ctrlbus_sink_t *sink,

@@ -806,6 +806,59 @@ static void test_inconsistent_answers_are_refused(void)
     CHECK_EQ(ctrlbus_request_encode(out, 21, &r, CTRLBUS_FRAME_AUTO), 21);
 }
 
+/* Text fields: what follows a text's NUL in its array goes out as zeros, and a text needs a NUL
+ * within its array (the wire field's characters at most) with ASCII before it. */
+static void test_text_fields_are_checked_and_zero_padded(void)
+{
+    enum { HEADER = 3 }; /* a standard frame: flag, length, cmd */
+    uint8_t out[64];
+    ctrlbus_answer_t a = ok_to(CTRLBUS_REQ_CONNECT_BASE);
+    memset(a.as.connect_base.model, 'X', sizeof a.as.connect_base.model);
+    memcpy(a.as.connect_base.model, "ab", 3); /* 'X' after the NUL */
+    memset(a.as.connect_base.firmware_version_suffix, 0x80, 12); /* unused: no suffix */
+    static const uint8_t model_field[CTRLBUS_MODEL_LEN] = {'a', 'b'};
+    CHECK_EQ(ctrlbus_answer_encode(out, sizeof out, &a, CTRLBUS_FRAME_STANDARD),
+             HEADER + (int32_t)CTRLBUS_CONNECT_BASE_ANSWER_SIZE + 1);
+    CHECK_MEM(out + HEADER, sizeof model_field, model_field, sizeof model_field);
+
+    a.as.connect_base.has_firmware_version_suffix = true; /* now the suffix counts */
+    CHECK_EQ(ctrlbus_connect_base_answer_size(&a.as.connect_base), CTRLBUS_ERR_ARGUMENT);
+    memset(a.as.connect_base.firmware_version_suffix, 'v', 12); /* 12 characters: no NUL */
+    CHECK_EQ(ctrlbus_connect_base_answer_size(&a.as.connect_base), CTRLBUS_ERR_ARGUMENT);
+    memset(a.as.connect_base.firmware_version_suffix, 'Y', 12);
+    a.as.connect_base.firmware_version_suffix[1] = '\0';
+    CHECK_EQ(ctrlbus_connect_base_answer_size(&a.as.connect_base),
+             (int32_t)CTRLBUS_CONNECT_BASE_ANSWER_SIZE_WITH_SUFFIX);
+    static const uint8_t suffix_field[CTRLBUS_FIRMWARE_VERSION_SUFFIX_LEN] = {'Y'};
+    CHECK_EQ(ctrlbus_answer_encode(out, sizeof out, &a, CTRLBUS_FRAME_STANDARD),
+             HEADER + (int32_t)CTRLBUS_CONNECT_BASE_ANSWER_SIZE_WITH_SUFFIX + 1);
+    CHECK_MEM(out + HEADER + CTRLBUS_CONNECT_BASE_ANSWER_SIZE, sizeof suffix_field, suffix_field,
+              sizeof suffix_field);
+    memset(a.as.connect_base.model, 'm', sizeof a.as.connect_base.model); /* 13: no NUL */
+    CHECK_EQ(ctrlbus_connect_base_answer_size(&a.as.connect_base), CTRLBUS_ERR_ARGUMENT);
+    a.as.connect_base.model[0] = '\0'; /* empty: fine */
+    CHECK_EQ(ctrlbus_connect_base_answer_size(&a.as.connect_base),
+             (int32_t)CTRLBUS_CONNECT_BASE_ANSWER_SIZE_WITH_SUFFIX);
+    a.as.connect_base.model[0] = 0x7F; /* DEL is ASCII; 0x80 is not (either char signedness) */
+    a.as.connect_base.model[1] = (char)0x80;
+    a.as.connect_base.model[2] = '\0';
+    CHECK_EQ(ctrlbus_connect_base_answer_size(&a.as.connect_base), CTRLBUS_ERR_ARGUMENT);
+    a.as.connect_base.model[1] = 0x01;
+    CHECK_EQ(ctrlbus_connect_base_answer_size(&a.as.connect_base),
+             (int32_t)CTRLBUS_CONNECT_BASE_ANSWER_SIZE_WITH_SUFFIX);
+    CHECK_EQ(ctrlbus_connect_base_answer_size(NULL), CTRLBUS_ERR_ARGUMENT);
+
+    a = ok_to(CTRLBUS_REQ_HEALTH_GET_ERROR);
+    memset(a.as.health_get_error.message, 'Z', sizeof a.as.health_get_error.message);
+    a.as.health_get_error.message[0] = 'e';
+    a.as.health_get_error.message[1] = '\0';
+    static const uint8_t message_field[CTRLBUS_HEALTH_MESSAGE_LEN] = {'e'};
+    CHECK_EQ(ctrlbus_answer_encode(out, sizeof out, &a, CTRLBUS_FRAME_STANDARD),
+             HEADER + (int32_t)CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE + 1);
+    CHECK_MEM(out + HEADER + 4, sizeof message_field, message_field, sizeof message_field);
+    CHECK_EQ(ctrlbus_health_get_error_answer_size(NULL), CTRLBUS_ERR_ARGUMENT);
+}
+
 /* A base answers through a sink with no frame buffer: the per-layout put writes into a frame it
  * began itself. Writing fewer or more bytes than announced is caught. */
 typedef struct {
@@ -885,6 +938,7 @@ int main(void)
     RUN(test_answer_lengths);
     RUN(test_short_and_special_answer_forms);
     RUN(test_inconsistent_answers_are_refused);
+    RUN(test_text_fields_are_checked_and_zero_padded);
     RUN(test_streamed_answer_matches_buffer_encoding);
     RUN(test_names);
     return harness_finish();
