@@ -315,6 +315,11 @@ typedef struct {
 /* The base stack instance. Caller-owned (usually static); treat the fields as private. */
 typedef struct {
     const ctrlbus_base_config_t *config;
+    /* The bytes first: a Cortex-M0 loads a byte at offsets 0..31 in one instruction. */
+    uint8_t health_count;
+    uint8_t command_head; /* with no command_queue storage: the pending command itself */
+    uint8_t command_count;
+    uint8_t flags;
     ctrlbus_decoder_t decoder;
     volatile uint16_t rx_head;     /* next byte to write; written by ctrlbus_base_feed() only */
     volatile uint16_t rx_tail;     /* next byte to read; written by ctrlbus_base_poll() only */
@@ -323,10 +328,6 @@ typedef struct {
     uint32_t boot_ms;              /* ctrlbus_base_init() or the last reboot: the uptime origin */
     uint32_t watchdog_trips;
     uint32_t clamped_commands;
-    uint8_t health_count;
-    uint8_t command_head;          /* with no command_queue storage: the pending command itself */
-    uint8_t command_count;
-    uint8_t flags;
 } ctrlbus_base_t;
 
 /* What the stack has counted since ctrlbus_base_init() (reboots keep them). */
