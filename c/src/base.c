@@ -99,7 +99,7 @@ static const char *health_message_at(const ctrlbus_base_t *base, uint8_t index)
     return entries != NULL ? entries[index].message : CTRLBUS_HEALTH_WATCHDOG_TRIPPED_MESSAGE;
 }
 
-static int32_t health_find(const ctrlbus_base_t *base, uint32_t code)
+static NOINLINE int32_t health_find(const ctrlbus_base_t *base, uint32_t code)
 {
     for (uint8_t i = 0; i < base->health_count; i++) {
         if (health_code_at(base, i) == code) {
