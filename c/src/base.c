@@ -422,7 +422,7 @@ static void restart(ctrlbus_base_t *base, uint32_t now_ms)
     base->flags = FLAG_REBOOTED;
     base->last_feed_ms = now_ms;
     base->boot_ms = now_ms;
-    ctrlbus_decoder_reset(&base->decoder);
+    ctrlbus_base_reset_line(base); /* the ring's bytes and the decoder's: poll takes no more */
 }
 
 /* The profile in force: a zero (reference) profile is the build's default. */
@@ -839,19 +839,6 @@ static inline unsigned drain(ctrlbus_base_t *base, uint32_t now_ms, ctrlbus_rx_t
     return results;
 }
 
-/* After a reboot handler returned: what was received before the reset is not heard. */
-static bool dropped_after_reboot(ctrlbus_base_t *base)
-{
-    if (!(base->flags & FLAG_REBOOTED)) {
-        return false;
-    }
-    clear_flags(base, FLAG_REBOOTED);
-    uint16_t head = base->rx_head;
-    CTRLBUS_RING_FENCE();
-    base->rx_tail = head;
-    return true;
-}
-
 #if CTRLBUS_DECODER_FAST
 /* Pushes the *run ring bytes from rx_tail on, one push() each (its inline path), up to the first
  * result, which it returns (NONE: none), and sets *run to the bytes it took. Out of line: its
@@ -925,6 +912,12 @@ void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
         /* A result is answered before its bytes' slots are released, since a frame taken in
          * place still lies in them. */
         unsigned results = rx == CTRLBUS_RX_NONE ? 0u : drain(base, now_ms, rx, &frame);
+        if (base->flags & FLAG_REBOOTED) {
+            /* A reboot handler returned: restart() dropped the ring's bytes, the answered ones
+             * included, and what was received before the reset is not heard. */
+            clear_flags(base, FLAG_REBOOTED);
+            return;
+        }
         if (used != 0u) {
             tail = (uint16_t)(tail + used);
             if (tail == config->rx_ring_size) {
@@ -934,7 +927,7 @@ void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
             base->rx_tail = tail;
         }
         /* The timeout's turn (nothing used, the ring done) is the last. */
-        if (dropped_after_reboot(base) || (used == 0u && tail == head)) {
+        if (used == 0u && tail == head) {
             return;
         }
         if (used == 0u && results == 0u) {
