@@ -313,8 +313,8 @@ static void run_watchdog(ctrlbus_base_t *base, uint32_t now_ms)
         period = CTRLBUS_BASE_DEFAULT_WATCHDOG_MS;
     }
     uint32_t elapsed = now_ms - base->last_feed_ms;
-    if (period == CTRLBUS_BASE_WATCHDOG_OFF || (base->flags & FLAG_WATCHDOG_EXPIRED) ||
-        elapsed <= period || elapsed >= TIME_BACKWARDS) {
+    /* CTRLBUS_BASE_WATCHDOG_OFF is the largest period: no elapsed time exceeds it. */
+    if ((base->flags & FLAG_WATCHDOG_EXPIRED) || elapsed <= period || elapsed >= TIME_BACKWARDS) {
         return;
     }
     /* Once per silence; a stop of moving wheels is a trip the Core can read (§9.1). */
