@@ -86,23 +86,21 @@ size_t ctrlbus_base_feed(ctrlbus_base_t *base, const uint8_t *data, size_t len)
 
 #if CTRLBUS_CONFIG_HEALTH
 
-/* With no storage the registry can only hold the watchdog's warning, which needs none. */
-static uint32_t health_code_at(const ctrlbus_base_t *base, uint8_t index)
-{
-    const ctrlbus_base_health_entry_t *entries = base->config->health_entries;
-    return entries != NULL ? entries[index].code : CTRLBUS_HEALTH_WATCHDOG_TRIPPED;
-}
+/* With no storage the registry can only hold the watchdog's warning, which needs none: this
+ * entry stands for it. */
+static const ctrlbus_base_health_entry_t WATCHDOG_ENTRY = {
+    CTRLBUS_HEALTH_WATCHDOG_TRIPPED, CTRLBUS_HEALTH_WATCHDOG_TRIPPED_MESSAGE};
 
-static const char *health_message_at(const ctrlbus_base_t *base, uint8_t index)
+static NOINLINE const ctrlbus_base_health_entry_t *health_at(const ctrlbus_base_t *base, uint8_t index)
 {
     const ctrlbus_base_health_entry_t *entries = base->config->health_entries;
-    return entries != NULL ? entries[index].message : CTRLBUS_HEALTH_WATCHDOG_TRIPPED_MESSAGE;
+    return entries != NULL ? &entries[index] : &WATCHDOG_ENTRY;
 }
 
 static NOINLINE int32_t health_find(const ctrlbus_base_t *base, uint32_t code)
 {
     for (uint8_t i = 0; i < base->health_count; i++) {
-        if (health_code_at(base, i) == code) {
+        if (health_at(base, i)->code == code) {
             return i;
         }
     }
@@ -508,7 +506,7 @@ static void health_summary(const ctrlbus_base_t *base, uint8_t out[2])
     uint8_t flags = 0;
 #if CTRLBUS_CONFIG_HEALTH
     for (uint8_t i = 0; i < base->health_count; i++) {
-        flags = (uint8_t)(flags | ((health_code_at(base, i) >> 24) & HEALTH_LEVEL_BITS));
+        flags = (uint8_t)(flags | ((health_at(base, i)->code >> 24) & HEALTH_LEVEL_BITS));
     }
     out[1] = base->health_count;
 #else
@@ -526,8 +524,9 @@ static bool health_entry(const ctrlbus_base_t *base, uint8_t index,
     if (index >= base->health_count) {
         return false;
     }
-    out->error_code = health_code_at(base, index);
-    const char *message = health_message_at(base, index);
+    const ctrlbus_base_health_entry_t *entry = health_at(base, index);
+    out->error_code = entry->code;
+    const char *message = entry->message;
     for (size_t i = 0; message != NULL && message[i] != '\0' && i < HEALTH_MESSAGE_MAX; i++) {
         out->message[i] = message[i];
     }
