@@ -478,14 +478,12 @@ static int32_t set_velocity(ctrlbus_base_t *base, const uint8_t *args, motion_st
 #if CTRLBUS_CONFIG_LIMITS
     const ctrlbus_base_limits_t *limits = &config->limits;
     clamped = clamp_to(&v->vx_mps_q16, limits->max_vx_mps_q16);
-    clamped = clamp_to(&v->omega_radps_q16, limits->max_omega_radps_q16) || clamped;
+    clamped |= clamp_to(&v->omega_radps_q16, limits->max_omega_radps_q16);
     if (limits->wheel_track_mm != 0u) {
         int32_t *wheels = motion->wheels;
         ctrlbus_diffdrive_wheel_speeds(v->vx_mps_q16, v->omega_radps_q16, limits->wheel_track_mm,
                                        &wheels[0], &wheels[1]);
-        clamped = scale_to(&v->vx_mps_q16, &v->omega_radps_q16, wheels,
-                           limits->max_wheel_mm_s) ||
-                  clamped;
+        clamped |= scale_to(&v->vx_mps_q16, &v->omega_radps_q16, wheels, limits->max_wheel_mm_s);
     }
 #endif
     note_motion(base, clamped,
