@@ -452,7 +452,7 @@ static int32_t set_wheel_speeds(ctrlbus_base_t *base, const uint8_t *args, int32
 #if CTRLBUS_CONFIG_LIMITS
     clamped = scale_to(&wheels[0], &wheels[1], wheels, config->limits.max_wheel_mm_s);
 #endif
-    note_motion(base, clamped, wheels[0] != 0 || wheels[1] != 0);
+    note_motion(base, clamped, (wheels[0] | wheels[1]) != 0);
     return config->set_wheel_speeds(config->context, wheels[0], wheels[1]);
 }
 
@@ -487,7 +487,7 @@ static int32_t set_velocity(ctrlbus_base_t *base, const uint8_t *args, motion_st
     }
 #endif
     note_motion(base, clamped,
-                v->vx_mps_q16 != 0 || v->vy_mps_q16 != 0 || v->omega_radps_q16 != 0);
+                (v->vx_mps_q16 | v->vy_mps_q16 | v->omega_radps_q16) != 0);
     int32_t result = config->set_velocity(config->context, v, out);
     if (!sdk2020(config)) {
         out->has_timestamp_ms = false;
