@@ -87,7 +87,8 @@ size_t ctrlbus_base_feed(ctrlbus_base_t *base, const uint8_t *data, size_t len)
 #if CTRLBUS_CONFIG_HEALTH
 
 /* With no storage the registry can only hold the watchdog's warning, which needs none: this
- * entry stands for it. */
+ * entry stands for it (6 B of RAM on an AVR, where const data is in RAM; less code everywhere
+ * than separate code and message look-ups). */
 static const ctrlbus_base_health_entry_t WATCHDOG_ENTRY = {
     CTRLBUS_HEALTH_WATCHDOG_TRIPPED, CTRLBUS_HEALTH_WATCHDOG_TRIPPED_MESSAGE};
 
@@ -99,8 +100,10 @@ static NOINLINE const ctrlbus_base_health_entry_t *health_at(const ctrlbus_base_
 
 static NOINLINE int32_t health_find(const ctrlbus_base_t *base, uint32_t code)
 {
-    for (uint8_t i = 0; i < base->health_count; i++) {
-        if (health_at(base, i)->code == code) {
+    /* Without storage there is at most one entry: entry never moves past the constant one. */
+    const ctrlbus_base_health_entry_t *entry = health_at(base, 0);
+    for (uint8_t i = 0; i < base->health_count; i++, entry++) {
+        if (entry->code == code) {
             return i;
         }
     }
@@ -503,8 +506,9 @@ static void health_summary(const ctrlbus_base_t *base, uint8_t out[2])
 {
     uint8_t flags = 0;
 #if CTRLBUS_CONFIG_HEALTH
-    for (uint8_t i = 0; i < base->health_count; i++) {
-        flags = (uint8_t)(flags | ((health_at(base, i)->code >> 24) & HEALTH_LEVEL_BITS));
+    const ctrlbus_base_health_entry_t *entry = health_at(base, 0); /* as in health_find */
+    for (uint8_t i = 0; i < base->health_count; i++, entry++) {
+        flags = (uint8_t)(flags | ((entry->code >> 24) & HEALTH_LEVEL_BITS));
     }
     out[1] = base->health_count;
 #else
@@ -754,10 +758,10 @@ static NOINLINE uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t
 }
 
 /* Writes the frame of an answer: cmd, the reply's payload, the checksum (long if is_long or if
- * the payload needs it). Out of line: the sink is on the stack only while the answer is written,
- * not while a handler runs. */
-static NOINLINE void send(const ctrlbus_base_config_t *config, uint8_t cmd, bool is_long,
-                          const reply_t *reply)
+ * the payload needs it). Inlined into answer(): its sink is then in answer's frame while a
+ * handler runs too, which costs less stack than a frame of its own would save code. */
+static void send(const ctrlbus_base_config_t *config, uint8_t cmd, bool is_long,
+                 const reply_t *reply)
 {
     ctrlbus_sink_t sink;
     sink.write = config->write; /* the rest is set by start */
