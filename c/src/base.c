@@ -780,8 +780,7 @@ static NOINLINE void answer(ctrlbus_base_t *base, ctrlbus_rx_t rx, const ctrlbus
 {
     reply_t reply;
     reply.source = &reply.out;
-    reply.layout = NULL;
-    reply.size = 0;
+    reply.layout = NULL; /* run_request sets it (and size) only when it returns 0 */
     uint8_t cmd = CTRLBUS_CMD_OK;
     uint16_t error = 0;
     if (rx != CTRLBUS_RX_FRAME) {
@@ -805,7 +804,6 @@ static NOINLINE void answer(ctrlbus_base_t *base, ctrlbus_rx_t rx, const ctrlbus
         reply.out.bytes[0] = (uint8_t)(error & 0xFFu);
         reply.out.bytes[1] = (uint8_t)(error >> 8);
         reply.source = reply.out.bytes;
-        reply.layout = NULL;
         reply.size = CTRLBUS_ERROR_ANSWER_SIZE;
     }
     const ctrlbus_base_config_t *config = base->config;
