@@ -401,13 +401,15 @@ static bool scale_to(int32_t *a, int32_t *b, const int32_t peaks[2], uint16_t li
     if (limit == 0u || peak <= limit) {
         return false;
     }
-    /* limit / peak < 1, so each result is smaller than its input. One loop for a and b. */
+    /* limit / peak < 1, so each result is smaller than its input. One loop for a, then b. */
     int32_t *value = a;
-    for (unsigned i = 0; i < 2u; i++) {
+    for (;;) {
         *value = with_sign_of(*value, scale_magnitude(magnitude(*value), limit, peak));
+        if (value == b) {
+            return true;
+        }
         value = b;
     }
-    return true;
 }
 
 #endif /* CTRLBUS_CONFIG_LIMITS */
