@@ -86,24 +86,23 @@ size_t ctrlbus_base_feed(ctrlbus_base_t *base, const uint8_t *data, size_t len)
 
 #if CTRLBUS_CONFIG_HEALTH
 
-/* With no storage the registry can only hold the watchdog's warning, which needs none: this
- * entry stands for it (6 B of RAM on an AVR, where const data is in RAM; less code everywhere
- * than separate code and message look-ups). */
-static const ctrlbus_base_health_entry_t WATCHDOG_ENTRY = {
-    CTRLBUS_HEALTH_WATCHDOG_TRIPPED, CTRLBUS_HEALTH_WATCHDOG_TRIPPED_MESSAGE};
-
-static NOINLINE const ctrlbus_base_health_entry_t *health_at(const ctrlbus_base_t *base, uint8_t index)
+/* With no storage the registry can only hold the watchdog's warning, which needs none. (No
+ * constant entry stands for it: an AVR would keep that in RAM.) */
+static uint32_t health_code_at(const ctrlbus_base_health_entry_t *entries, uint8_t index)
 {
-    const ctrlbus_base_health_entry_t *entries = base->config->health_entries;
-    return entries != NULL ? &entries[index] : &WATCHDOG_ENTRY;
+    return entries != NULL ? entries[index].code : CTRLBUS_HEALTH_WATCHDOG_TRIPPED;
+}
+
+static const char *health_message_at(const ctrlbus_base_health_entry_t *entries, uint8_t index)
+{
+    return entries != NULL ? entries[index].message : CTRLBUS_HEALTH_WATCHDOG_TRIPPED_MESSAGE;
 }
 
 static NOINLINE int32_t health_find(const ctrlbus_base_t *base, uint32_t code)
 {
-    /* Without storage there is at most one entry: entry never moves past the constant one. */
-    const ctrlbus_base_health_entry_t *entry = health_at(base, 0);
-    for (uint8_t i = 0; i < base->health_count; i++, entry++) {
-        if (entry->code == code) {
+    const ctrlbus_base_health_entry_t *entries = base->config->health_entries;
+    for (uint8_t i = 0; i < base->health_count; i++) {
+        if (health_code_at(entries, i) == code) {
             return i;
         }
     }
@@ -508,9 +507,9 @@ static void health_summary(const ctrlbus_base_t *base, uint8_t out[2])
 {
     uint8_t flags = 0;
 #if CTRLBUS_CONFIG_HEALTH
-    const ctrlbus_base_health_entry_t *entry = health_at(base, 0); /* as in health_find */
-    for (uint8_t i = 0; i < base->health_count; i++, entry++) {
-        flags = (uint8_t)(flags | ((entry->code >> 24) & HEALTH_LEVEL_BITS));
+    const ctrlbus_base_health_entry_t *entries = base->config->health_entries;
+    for (uint8_t i = 0; i < base->health_count; i++) {
+        flags = (uint8_t)(flags | ((health_code_at(entries, i) >> 24) & HEALTH_LEVEL_BITS));
     }
     out[1] = base->health_count;
 #else
@@ -528,9 +527,9 @@ static bool health_entry(const ctrlbus_base_t *base, uint8_t index,
     if (index >= base->health_count) {
         return false;
     }
-    const ctrlbus_base_health_entry_t *entry = health_at(base, index);
-    out->error_code = entry->code;
-    const char *message = entry->message;
+    const ctrlbus_base_health_entry_t *entries = base->config->health_entries;
+    out->error_code = health_code_at(entries, index);
+    const char *message = health_message_at(entries, index);
     for (size_t i = 0; message != NULL && message[i] != '\0' && i < HEALTH_MESSAGE_MAX; i++) {
         out->message[i] = message[i];
     }

@@ -79,7 +79,7 @@
  * (`make size` prints the worst case per target, from -fstack-usage along the call graph; other
  * cores and -O2 differ: 288 B on RV32 at -Os), plus what the handlers and write use. Answering
  * a request takes at most that, poll included, whether a handler runs (the deepest: a velocity
- * command through the limits, and HEALTH_CLR_ERROR) or the answer is written, and the decoder's take() path stays
+ * command through the limits) or the answer is written, and the decoder's take() path stays
  * below it: the storage of the answer a
  * handler fills (64 bytes, GET_BASE_SENSOR_DATA's, the largest; GET_BASE_CONF and the 0x21 blob
  * are written from the application's storage) and the frame writer are on the stack while
