@@ -86,23 +86,23 @@ size_t ctrlbus_base_feed(ctrlbus_base_t *base, const uint8_t *data, size_t len)
 
 #if CTRLBUS_CONFIG_HEALTH
 
-/* With no storage the registry can only hold the watchdog's warning, which needs none. */
-static uint32_t health_code_at(const ctrlbus_base_t *base, uint8_t index)
+/* With no storage the registry can only hold the watchdog's warning, which needs none. (No
+ * constant entry stands for it: an AVR would keep that in RAM.) */
+static uint32_t health_code_at(const ctrlbus_base_health_entry_t *entries, uint8_t index)
 {
-    const ctrlbus_base_health_entry_t *entries = base->config->health_entries;
     return entries != NULL ? entries[index].code : CTRLBUS_HEALTH_WATCHDOG_TRIPPED;
 }
 
-static const char *health_message_at(const ctrlbus_base_t *base, uint8_t index)
+static const char *health_message_at(const ctrlbus_base_health_entry_t *entries, uint8_t index)
 {
-    const ctrlbus_base_health_entry_t *entries = base->config->health_entries;
     return entries != NULL ? entries[index].message : CTRLBUS_HEALTH_WATCHDOG_TRIPPED_MESSAGE;
 }
 
-static int32_t health_find(const ctrlbus_base_t *base, uint32_t code)
+static NOINLINE int32_t health_find(const ctrlbus_base_t *base, uint32_t code)
 {
+    const ctrlbus_base_health_entry_t *entries = base->config->health_entries;
     for (uint8_t i = 0; i < base->health_count; i++) {
-        if (health_code_at(base, i) == code) {
+        if (health_code_at(entries, i) == code) {
             return i;
         }
     }
@@ -313,8 +313,8 @@ static void run_watchdog(ctrlbus_base_t *base, uint32_t now_ms)
         period = CTRLBUS_BASE_DEFAULT_WATCHDOG_MS;
     }
     uint32_t elapsed = now_ms - base->last_feed_ms;
-    if (period == CTRLBUS_BASE_WATCHDOG_OFF || (base->flags & FLAG_WATCHDOG_EXPIRED) ||
-        elapsed <= period || elapsed >= TIME_BACKWARDS) {
+    /* CTRLBUS_BASE_WATCHDOG_OFF is the largest period: no elapsed time exceeds it. */
+    if ((base->flags & FLAG_WATCHDOG_EXPIRED) || elapsed <= period || elapsed >= TIME_BACKWARDS) {
         return;
     }
     /* Once per silence; a stop of moving wheels is a trip the Core can read (§9.1). */
@@ -400,13 +400,15 @@ static bool scale_to(int32_t *a, int32_t *b, const int32_t peaks[2], uint16_t li
     if (limit == 0u || peak <= limit) {
         return false;
     }
-    /* limit / peak < 1, so each result is smaller than its input. One loop for a and b. */
+    /* limit / peak < 1, so each result is smaller than its input. One loop for a, then b. */
     int32_t *value = a;
-    for (unsigned i = 0; i < 2u; i++) {
+    for (;;) {
         *value = with_sign_of(*value, scale_magnitude(magnitude(*value), limit, peak));
+        if (value == b) {
+            return true;
+        }
         value = b;
     }
-    return true;
 }
 
 #endif /* CTRLBUS_CONFIG_LIMITS */
@@ -422,7 +424,7 @@ static void restart(ctrlbus_base_t *base, uint32_t now_ms)
     base->flags = FLAG_REBOOTED;
     base->last_feed_ms = now_ms;
     base->boot_ms = now_ms;
-    ctrlbus_decoder_reset(&base->decoder);
+    ctrlbus_base_reset_line(base); /* the ring's bytes and the decoder's: poll takes no more */
 }
 
 /* The profile in force: a zero (reference) profile is the build's default. */
@@ -454,13 +456,13 @@ static int32_t set_wheel_speeds(ctrlbus_base_t *base, const uint8_t *args, int32
 #if CTRLBUS_CONFIG_LIMITS
     clamped = scale_to(&wheels[0], &wheels[1], wheels, config->limits.max_wheel_mm_s);
 #endif
-    note_motion(base, clamped, wheels[0] != 0 || wheels[1] != 0);
+    note_motion(base, clamped, (wheels[0] | wheels[1]) != 0);
     return config->set_wheel_speeds(config->context, wheels[0], wheels[1]);
 }
 
 /* SET_V_AND_GET_DEADRECKON's part of the answer storage: the handler's input and its answer. */
 typedef struct {
-    ctrlbus_set_v_and_get_deadreckon_answer_t answer; /* first: zeroed (ZEROED below) */
+    ctrlbus_set_v_and_get_deadreckon_answer_t answer;
     ctrlbus_set_v_and_get_deadreckon_request_t velocity;
     int32_t wheels[2]; /* the limits' wheel speeds: here, not on the stack (poll's deepest path) */
 } motion_storage_t;
@@ -480,18 +482,16 @@ static int32_t set_velocity(ctrlbus_base_t *base, const uint8_t *args, motion_st
 #if CTRLBUS_CONFIG_LIMITS
     const ctrlbus_base_limits_t *limits = &config->limits;
     clamped = clamp_to(&v->vx_mps_q16, limits->max_vx_mps_q16);
-    clamped = clamp_to(&v->omega_radps_q16, limits->max_omega_radps_q16) || clamped;
+    clamped |= clamp_to(&v->omega_radps_q16, limits->max_omega_radps_q16);
     if (limits->wheel_track_mm != 0u) {
         int32_t *wheels = motion->wheels;
         ctrlbus_diffdrive_wheel_speeds(v->vx_mps_q16, v->omega_radps_q16, limits->wheel_track_mm,
                                        &wheels[0], &wheels[1]);
-        clamped = scale_to(&v->vx_mps_q16, &v->omega_radps_q16, wheels,
-                           limits->max_wheel_mm_s) ||
-                  clamped;
+        clamped |= scale_to(&v->vx_mps_q16, &v->omega_radps_q16, wheels, limits->max_wheel_mm_s);
     }
 #endif
     note_motion(base, clamped,
-                v->vx_mps_q16 != 0 || v->vy_mps_q16 != 0 || v->omega_radps_q16 != 0);
+                (v->vx_mps_q16 | v->vy_mps_q16 | v->omega_radps_q16) != 0);
     int32_t result = config->set_velocity(config->context, v, out);
     if (!sdk2020(config)) {
         out->has_timestamp_ms = false;
@@ -507,8 +507,9 @@ static void health_summary(const ctrlbus_base_t *base, uint8_t out[2])
 {
     uint8_t flags = 0;
 #if CTRLBUS_CONFIG_HEALTH
+    const ctrlbus_base_health_entry_t *entries = base->config->health_entries;
     for (uint8_t i = 0; i < base->health_count; i++) {
-        flags = (uint8_t)(flags | ((health_code_at(base, i) >> 24) & HEALTH_LEVEL_BITS));
+        flags = (uint8_t)(flags | ((health_code_at(entries, i) >> 24) & HEALTH_LEVEL_BITS));
     }
     out[1] = base->health_count;
 #else
@@ -526,8 +527,9 @@ static bool health_entry(const ctrlbus_base_t *base, uint8_t index,
     if (index >= base->health_count) {
         return false;
     }
-    out->error_code = health_code_at(base, index);
-    const char *message = health_message_at(base, index);
+    const ctrlbus_base_health_entry_t *entries = base->config->health_entries;
+    out->error_code = health_code_at(entries, index);
+    const char *message = health_message_at(entries, index);
     for (size_t i = 0; message != NULL && message[i] != '\0' && i < HEALTH_MESSAGE_MAX; i++) {
         out->message[i] = message[i];
     }
@@ -542,8 +544,9 @@ static bool health_entry(const ctrlbus_base_t *base, uint8_t index,
 
 /* Where the answer to the request being handled lives while a handler fills it and it is
  * written: on poll's stack, as large as the largest member (GET_BASE_SENSOR_DATA's 64 bytes).
- * Only the member in use is zeroed. GET_BASE_CONF and the 0x21 blob are written from the
- * application's own storage instead. */
+ * All of it is zeroed before a request runs: one constant-size memset is less code than a
+ * size per request. GET_BASE_CONF and the 0x21 blob are written from the application's own
+ * storage instead. */
 typedef union {
     ctrlbus_connect_base_answer_t connect_base;
     ctrlbus_get_base_status_answer_t get_base_status;
@@ -561,22 +564,6 @@ typedef char status_is_two_bytes[offsetof(ctrlbus_get_base_status_answer_t, powe
                                      ? 1
                                      : -1];
 
-/* How many bytes at the start of the storage each request's handler fills (zeroed before it
- * runs), by request kind from CONNECT_BASE on; 0: none. */
-#define ZEROED_FIRST CTRLBUS_REQ_CONNECT_BASE
-static const uint8_t ZEROED[CTRLBUS_REQ_HEALTH_CLR_ERROR + 1 - ZEROED_FIRST] CODEC_ROM = {
-    [CTRLBUS_REQ_CONNECT_BASE - ZEROED_FIRST] = sizeof(ctrlbus_connect_base_answer_t),
-    [CTRLBUS_REQ_GET_BASE_STATUS - ZEROED_FIRST] = sizeof(ctrlbus_get_base_status_answer_t),
-    [CTRLBUS_REQ_GET_BASE_MOTOR_DATA - ZEROED_FIRST] = sizeof(ctrlbus_get_base_motor_data_answer_t),
-    [CTRLBUS_REQ_GET_BASE_SENSOR_DATA - ZEROED_FIRST] =
-        sizeof(ctrlbus_get_base_sensor_data_answer_t),
-    [CTRLBUS_REQ_GET_BASE_BUMPER_DATA - ZEROED_FIRST] =
-        sizeof(ctrlbus_get_base_bumper_data_answer_t),
-    [CTRLBUS_REQ_GET_CHARGER_DATA - ZEROED_FIRST] = sizeof(ctrlbus_get_charger_data_answer_t),
-    [CTRLBUS_REQ_SET_V_AND_GET_DEADRECKON - ZEROED_FIRST] =
-        sizeof(ctrlbus_set_v_and_get_deadreckon_answer_t),
-    [CTRLBUS_REQ_HEALTH_GET_ERROR - ZEROED_FIRST] = sizeof(ctrlbus_health_get_error_answer_t),
-};
 
 /* The answer being written: its storage, and when nothing failed, `size` payload bytes of
  * `source` (usually the storage) through `layout` (NULL: its bytes as they are). */
@@ -627,9 +614,7 @@ static NOINLINE uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t
     if (len != expected) {
         return CTRLBUS_WIRE_ERR_FORMAT;
     }
-    if (kind >= ZEROED_FIRST) {
-        memset(out, 0, CODEC_ROM_BYTE(&ZEROED[kind - ZEROED_FIRST]));
-    }
+    memset(out, 0, sizeof *out);
     switch ((ctrlbus_req_kind_t)kind) {
     case CTRLBUS_REQ_BASE_CMD:
         /* Its hook runs once the OK is out (answer()). */
@@ -774,10 +759,10 @@ static NOINLINE uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t
 }
 
 /* Writes the frame of an answer: cmd, the reply's payload, the checksum (long if is_long or if
- * the payload needs it). Out of line: the sink is on the stack only while the answer is written,
- * not while a handler runs. */
-static NOINLINE void send(const ctrlbus_base_config_t *config, uint8_t cmd, bool is_long,
-                          const reply_t *reply)
+ * the payload needs it). Inlined into answer(): its sink is then in answer's frame while a
+ * handler runs too, which costs less stack than a frame of its own would save code. */
+static void send(const ctrlbus_base_config_t *config, uint8_t cmd, bool is_long,
+                 const reply_t *reply)
 {
     ctrlbus_sink_t sink;
     sink.write = config->write; /* the rest is set by start */
@@ -796,8 +781,7 @@ static NOINLINE void answer(ctrlbus_base_t *base, ctrlbus_rx_t rx, const ctrlbus
 {
     reply_t reply;
     reply.source = &reply.out;
-    reply.layout = NULL;
-    reply.size = 0;
+    reply.layout = NULL; /* run_request sets it (and size) only when it returns 0 */
     uint8_t cmd = CTRLBUS_CMD_OK;
     uint16_t error = 0;
     if (rx != CTRLBUS_RX_FRAME) {
@@ -821,7 +805,6 @@ static NOINLINE void answer(ctrlbus_base_t *base, ctrlbus_rx_t rx, const ctrlbus
         reply.out.bytes[0] = (uint8_t)(error & 0xFFu);
         reply.out.bytes[1] = (uint8_t)(error >> 8);
         reply.source = reply.out.bytes;
-        reply.layout = NULL;
         reply.size = CTRLBUS_ERROR_ANSWER_SIZE;
     }
     const ctrlbus_base_config_t *config = base->config;
@@ -854,19 +837,6 @@ static inline unsigned drain(ctrlbus_base_t *base, uint32_t now_ms, ctrlbus_rx_t
         answer(base, rx, frame, now_ms);
     }
     return results;
-}
-
-/* After a reboot handler returned: what was received before the reset is not heard. */
-static bool dropped_after_reboot(ctrlbus_base_t *base)
-{
-    if (!(base->flags & FLAG_REBOOTED)) {
-        return false;
-    }
-    clear_flags(base, FLAG_REBOOTED);
-    uint16_t head = base->rx_head;
-    CTRLBUS_RING_FENCE();
-    base->rx_tail = head;
-    return true;
 }
 
 #if CTRLBUS_DECODER_FAST
@@ -942,6 +912,12 @@ void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
         /* A result is answered before its bytes' slots are released, since a frame taken in
          * place still lies in them. */
         unsigned results = rx == CTRLBUS_RX_NONE ? 0u : drain(base, now_ms, rx, &frame);
+        if (base->flags & FLAG_REBOOTED) {
+            /* A reboot handler returned: restart() dropped the ring's bytes, the answered ones
+             * included, and what was received before the reset is not heard. */
+            clear_flags(base, FLAG_REBOOTED);
+            return;
+        }
         if (used != 0u) {
             tail = (uint16_t)(tail + used);
             if (tail == config->rx_ring_size) {
@@ -951,7 +927,7 @@ void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
             base->rx_tail = tail;
         }
         /* The timeout's turn (nothing used, the ring done) is the last. */
-        if (dropped_after_reboot(base) || (used == 0u && tail == head)) {
+        if (used == 0u && tail == head) {
             return;
         }
         if (used == 0u && results == 0u) {

@@ -11,19 +11,23 @@
 /* Below this half-turn (radians) the chord factor sin(h)/h comes from its series. */
 #define SMALL_HALF_TURN_RAD 1e-4f
 
-/* x * factor split at bit 17, rounding down: returns q and sets *rest to r, with
- * x * factor = q * 2^17 + r and 0 <= r < 2^17. 32-bit arithmetic only (|x * factor| < 2^47):
- * a 64-bit product would pull in libgcc's multiply (90 bytes on a Cortex-M0). */
-static int32_t split_product(int32_t x, uint16_t factor, int32_t *rest)
+/* floor(x * factor / 2^17), in 32-bit arithmetic only (|x * factor| < 2^47): a 64-bit product
+ * would pull in libgcc's multiply (90 bytes on a Cortex-M0). The remainder, x * factor mod 2^17,
+ * needs no work here: it is the low 17 bits of the product taken modulo 2^32. */
+static int32_t product_over_2_17(int32_t x, uint16_t factor)
 {
     uint32_t x_low = (uint32_t)x & 0xFFFFu;
     int32_t x_high = (x - (int32_t)x_low) / 65536; /* exact: floor(x / 2^16), in -2^15..2^15-1 */
     uint32_t low_product = x_low * factor;         /* < 2^32 */
-    /* x * factor = sum * 2^16 + (low_product & 0xFFFF), |sum| < 2^31 - 2^15 */
+    /* floor(x * factor / 2^16), |sum| < 2^31 - 2^15 */
     int32_t sum = x_high * (int32_t)factor + (int32_t)(low_product >> 16);
-    uint32_t odd = (uint32_t)sum & 1u;
-    *rest = (int32_t)((odd << 16) | (low_product & 0xFFFFu));
-    return (sum - (int32_t)odd) / 2; /* exact */
+    return (sum - (int32_t)((uint32_t)sum & 1u)) / 2; /* exact */
+}
+
+/* x * factor mod 2^17 (0..2^17-1): the product's low bits, exact in modular arithmetic. */
+static int32_t product_rest(int32_t x, uint16_t factor)
+{
+    return (int32_t)(((uint32_t)x * factor) & 0x1FFFFu);
 }
 
 static int32_t float_to_q16(float value)
@@ -44,10 +48,10 @@ void ctrlbus_diffdrive_wheel_speeds(int32_t vx_mps_q16, int32_t omega_radps_q16,
 {
     /* Everything doubled (so W/2 stays exact) and in Q16, each product split at bit 17:
      * 2000 vx = forward * 2^17 + forward_rest, omega W = turn * 2^17 + turn_rest. */
-    int32_t forward_rest;
-    int32_t forward = split_product(vx_mps_q16, 2000, &forward_rest);
-    int32_t turn_rest;
-    int32_t turn = split_product(omega_radps_q16, wheel_track_mm, &turn_rest);
+    int32_t forward = product_over_2_17(vx_mps_q16, 2000);
+    int32_t forward_rest = product_rest(vx_mps_q16, 2000);
+    int32_t turn = product_over_2_17(omega_radps_q16, wheel_track_mm);
+    int32_t turn_rest = product_rest(omega_radps_q16, wheel_track_mm);
     /* Left first (forward - turn), then right; one loop keeps one copy of the code. */
     turn = -turn;
     turn_rest = -turn_rest;

@@ -34,6 +34,8 @@ typedef struct {
     size_t output_at_reboot; /* bytes written when the reboot handler ran */
     int health_at_reboot;    /* what the reboot handler found */
     int commands_at_reboot;
+    const uint8_t *fed_at_reboot; /* bytes the reboot handler feeds (a host's reader thread) */
+    size_t fed_at_reboot_len;
     int dfu_calls;
     int line_calls;
     bool line_low;
@@ -207,6 +209,9 @@ static void app_reboot(void *context)
     app.output_at_reboot = output_len;
     app.health_at_reboot = ctrlbus_base_health_count(&base);
     app.commands_at_reboot = ctrlbus_base_commands_pending(&base);
+    if (app.fed_at_reboot != NULL) {
+        (void)ctrlbus_base_feed(&base, app.fed_at_reboot, app.fed_at_reboot_len);
+    }
 }
 
 static void app_enter_dfu(void *context)
@@ -1432,6 +1437,24 @@ static void test_command_queue_without_storage_holds_one(void)
 
 /* ---- BASE_CMD ------------------------------------------------------------------------------- */
 
+/* The reset forgets what came before it, not what arrives while the reboot handler runs (a host
+ * base's reader thread feeding meanwhile): that is the rebooted base's first input. */
+static void test_bytes_fed_while_rebooting_are_heard(void)
+{
+    static const uint8_t status_request[] = {0x10, 0x02, 0xF8, 0x30, 0xDA};
+    setup();
+    app.fed_at_reboot = status_request;
+    app.fed_at_reboot_len = sizeof status_request;
+    feed_hex("10 02 F9 02 E9  10 02 F8 30 DA");
+    ctrlbus_base_poll(&base, now);
+    CHECK_EQ(app.reboot_calls, 1);
+    expect_ok(0);
+    expect_nothing_more(); /* the request behind REBOOT in the burst was before the reset */
+    ctrlbus_base_poll(&base, now);
+    expect_ok(2); /* the one fed during the handler */
+    expect_nothing_more();
+}
+
 static void test_reboot_answers_first_then_resets(void)
 {
     setup();
@@ -1893,6 +1916,7 @@ int main(void)
         RUN(test_command_queue_without_storage_holds_one);
     }
     RUN(test_reboot_answers_first_then_resets);
+    RUN(test_bytes_fed_while_rebooting_are_heard);
     RUN(test_compiled_out_features_answer_and_fail_clearly);
     RUN(test_ring_overflow_drops_and_counts);
     RUN(test_interrupt_feeding_inside_the_poll_loses_nothing);

@@ -77,14 +77,13 @@
  * caller's rx_ring, frame_buffer and the optional health and command storage. ctrlbus_base_poll()
  * needs at most 256 bytes of C stack on a Cortex-M0+ at -Os in the default configuration
  * (`make size` prints the worst case per target, from -fstack-usage along the call graph; other
- * cores and -O2 differ: 304 B on RV32 at -Os), plus what the handlers and write use. Answering
+ * cores and -O2 differ: 288 B on RV32 at -Os), plus what the handlers and write use. Answering
  * a request takes at most that, poll included, whether a handler runs (the deepest: a velocity
  * command through the limits) or the answer is written, and the decoder's take() path stays
  * below it: the storage of the answer a
  * handler fills (64 bytes, GET_BASE_SENSOR_DATA's, the largest; GET_BASE_CONF and the 0x21 blob
- * are written from the application's storage) is on the stack while either runs, the frame
- * writer only while the answer is written. Features can be compiled out
- * (ctrlbus/ctrlbus_config.h).
+ * are written from the application's storage) and the frame writer are on the stack while
+ * either runs. Features can be compiled out (ctrlbus/ctrlbus_config.h).
  *
  * Behaviour: what the stack does by itself (docs/protocol.md has the wire rules it follows):
  *  1. Order. ctrlbus_base_poll() runs the motor watchdog (6), then takes the bytes that were in
@@ -315,6 +314,11 @@ typedef struct {
 /* The base stack instance. Caller-owned (usually static); treat the fields as private. */
 typedef struct {
     const ctrlbus_base_config_t *config;
+    /* The bytes first: a Cortex-M0 loads a byte at offsets 0..31 in one instruction. */
+    uint8_t health_count;
+    uint8_t command_head; /* with no command_queue storage: the pending command itself */
+    uint8_t command_count;
+    uint8_t flags;
     ctrlbus_decoder_t decoder;
     volatile uint16_t rx_head;     /* next byte to write; written by ctrlbus_base_feed() only */
     volatile uint16_t rx_tail;     /* next byte to read; written by ctrlbus_base_poll() only */
@@ -323,10 +327,6 @@ typedef struct {
     uint32_t boot_ms;              /* ctrlbus_base_init() or the last reboot: the uptime origin */
     uint32_t watchdog_trips;
     uint32_t clamped_commands;
-    uint8_t health_count;
-    uint8_t command_head;          /* with no command_queue storage: the pending command itself */
-    uint8_t command_count;
-    uint8_t flags;
 } ctrlbus_base_t;
 
 /* What the stack has counted since ctrlbus_base_init() (reboots keep them). */
@@ -379,7 +379,7 @@ size_t ctrlbus_base_feed(ctrlbus_base_t *base, const uint8_t *data, size_t len);
  * plus for each request one look-up in the request table (17 rows), its handler, and the
  * answer's size in byte visits (one write call per run of integer fields, per text byte, and for
  * the header and the checksum); no work beyond the ring's content at entry. Stack: see
- * "Footprint" above (about 310 bytes on a Cortex-M0+, plus the handlers' and write's). */
+ * "Footprint" above (at most 256 bytes on a Cortex-M0+, plus the handlers' and write's). */
 void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms);
 
 /* A new line: the host connected a new peer (a new TCP connection, a re-plugged cable), so the

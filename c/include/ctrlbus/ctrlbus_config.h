@@ -17,9 +17,9 @@
  *     ctrlbus_base_init() refuses (CTRLBUS_ERR_UNSUPPORTED) a config that asks for it.
  *
  * The size effects are .text bytes of the base stack on cortex-m0plus, arm-none-eabi-gcc 12 -Os,
- * linked with --gc-sections, each switch turned off alone from the default build (5,317 B). All
- * off together, with the decoder's bulk path off too (the minimal configuration), save 2,285 B
- * (3,032 B left). Measured with `make size`, which prints both configurations for every target;
+ * linked with --gc-sections, each switch turned off alone from the default build (5,101 B). All
+ * off together, with the decoder's bulk path off too (the minimal configuration), save 2,159 B
+ * (2,942 B left). Measured with `make size`, which prints both configurations for every target;
  * docs/performance.md tables them.
  */
 #ifndef CTRLBUS_CTRLBUS_CONFIG_H
@@ -33,7 +33,7 @@
  * watchdog's health warning). Off: HEALTH_GET_HEALTH (mandatory) answers no errors,
  * HEALTH_GET_ERROR and HEALTH_CLR_ERROR answer 0x8002 (no such error, as with an empty registry),
  * ctrlbus_base_health_add/_clear return CTRLBUS_ERR_UNSUPPORTED, and a config with
- * health_entries is refused. Size effect: 471 B. */
+ * health_entries is refused. Size effect: 433 B. */
 #ifndef CTRLBUS_CONFIG_HEALTH
 #define CTRLBUS_CONFIG_HEALTH 1
 #endif
@@ -42,15 +42,15 @@
  * pending command, the nCMD line callback). Off: POLL_BASE_CMD (mandatory) always answers
  * "nothing pending", POLL_BASE_ANS_CMD answers OK, ctrlbus_base_queue_command returns
  * CTRLBUS_ERR_UNSUPPORTED, and a config with command_queue storage is refused.
- * Size effect: 278 B. */
+ * Size effect: 238 B. */
 #ifndef CTRLBUS_CONFIG_COMMAND_QUEUE
 #define CTRLBUS_CONFIG_COMMAND_QUEUE 1
 #endif
 
 /* The velocity limits (ctrlbus_base_config_t.limits, docs/protocol.md §9.2), including the
  * differential-drive arithmetic they need. Off: commands reach the handlers unchanged, and a
- * config with any limit set is refused. Size effect: 408 B (ctrlbus/diffdrive.h's wheel speeds
- * 146 B and the scaling 126 B, in 32-bit arithmetic: no libgcc multiply or divide; the rest is
+ * config with any limit set is refused. Size effect: 352 B (ctrlbus/diffdrive.h's wheel speeds
+ * 124 B and the scaling 118 B, in 32-bit arithmetic: no libgcc multiply or divide; the rest is
  * the clamping and the calls in the request handling). */
 #ifndef CTRLBUS_CONFIG_LIMITS
 #define CTRLBUS_CONFIG_LIMITS 1
@@ -65,7 +65,7 @@
 
 /* GET_BASE_CONF_ADV (0x21), streamed from ctrlbus_base_config_t.binary_config. Off: the request
  * is answered 0x8000 (the Core then asks GET_BASE_CONF), and a config with a binary_config is
- * refused. Size effect: 24 B. */
+ * refused. Size effect: 12 B. */
 #ifndef CTRLBUS_CONFIG_CONF_ADV
 #define CTRLBUS_CONFIG_CONF_ADV 1
 #endif
@@ -90,7 +90,7 @@
  * minimal configuration has it off. Size effect (frame.c's decoder, cortex-m0plus -Os): level 0
  * about 0.7 KB linked into a base that uses push, next and tick; level 2 about 1.6 KB in the
  * default base; level 1 about 3.5 KB (ctrlbus/frame.h at ctrlbus_decoder_feed()). The default
- * base stack is 4,325 B at level 0, 5,317 B at level 2 and 6,981 B at level 1. */
+ * base stack is 4,097 B at level 0, 5,101 B at level 2 and 6,765 B at level 1. */
 #ifndef CTRLBUS_DECODER_FAST
 #if defined(__OPTIMIZE_SIZE__)
 #define CTRLBUS_DECODER_FAST 2
