@@ -106,7 +106,7 @@ class Exchange:
         self._config = config
         self._stats = stats
         self._log = journal.log
-        self.outstanding: Outstanding | None = None
+        self._outstanding: Outstanding | None = None
         # §11.6 [core-flush]: after a silent attempt, a flushing SYNC goes before the next request,
         # and the request waits (held) until the flush is over.
         self._flush_pending = False
@@ -115,12 +115,17 @@ class Exchange:
         self._failed_streak = 0  # failed attempts in a row, whatever the request (an answer resets it)
         self._last_error_logged: dict[str, int] = {}
 
+    @property
+    def outstanding(self) -> Outstanding | None:
+        """The request in flight (None: nothing is)."""
+        return self._outstanding
+
     # ============================================================================== sending
 
     def due_time(self, now: float) -> float | None:
         """When the request in flight next needs poll(): `now` to resend, else its deadline;
         None when nothing is in flight."""
-        outstanding = self.outstanding
+        outstanding = self._outstanding
         if outstanding is None:
             return None
         return now if outstanding.resend else outstanding.deadline
@@ -129,7 +134,7 @@ class Exchange:
         """The frame the exchange itself wants sent now: a pending flush (if `may_flush`, while a
         base is connected) or a resend. None if it has none; it may still be waiting for an answer
         (`outstanding`), in which case nothing new may be started."""
-        outstanding = self.outstanding
+        outstanding = self._outstanding
         if self._flush_pending and (outstanding is None or outstanding.resend) and may_flush:
             # A reference base has no inter-byte timeout: a false frame start in noise may be
             # swallowing every request; 512 bytes complete whatever it waits for (§11.6).
@@ -175,7 +180,7 @@ class Exchange:
             schedule_name=schedule_name,
             resend=True,
         )
-        self.outstanding = outstanding
+        self._outstanding = outstanding
         if purpose in TRACKED_PURPOSES:
             self._stats.tracked_requests += 1
         return outstanding
@@ -201,20 +206,20 @@ class Exchange:
     def expired(self, now: float) -> Outstanding | None:
         """The request in flight if its attempt's deadline has passed at `now` (it stays in
         flight: the caller ends the flush, fails the attempt, or drops it)."""
-        outstanding = self.outstanding
+        outstanding = self._outstanding
         if outstanding is None or outstanding.resend or now <= outstanding.deadline:
             return None
         return outstanding
 
     def drop(self) -> None:
         """Nothing is in flight any more (the request needs no answer now)."""
-        self.outstanding = None
+        self._outstanding = None
 
     def end_flush(self, *, resume_held: bool) -> None:
         """The flushing SYNC's window is over: the held request goes on if `resume_held`."""
-        self.outstanding = None
+        self._outstanding = None
         if resume_held:
-            self.outstanding, self._held = self._held, None
+            self._outstanding, self._held = self._held, None
 
     def fail(self, outstanding: Outstanding, reason: str, *, silent: bool, period_due: bool) -> Verdict:
         """An attempt failed: `silent` (a timeout) or answered by a line fault, INVALID or a
@@ -233,13 +238,13 @@ class Exchange:
             too_faulty = self._failed_streak >= config.line_fault_attempts
             if not too_silent and not too_faulty:
                 if period_due:
-                    self.outstanding = None
+                    self._outstanding = None
                     self._stats.superseded += 1  # its next period is due: the fresh one goes instead
                     return Verdict.SUPERSEDED
                 outstanding.resend = True
                 self._log("core", f"{reason} (attempt {outstanding.attempts}): sending again")
                 return Verdict.RESENDING
-            self.outstanding = None
+            self._outstanding = None
             self._stats.disconnects += 1
             self._stats.abandoned_at_disconnect += 1
             what = (
@@ -254,15 +259,15 @@ class Exchange:
             attempt = f"attempt {outstanding.attempts}/{outstanding.max_attempts}"
             self._log("core", f"{reason} ({attempt}): sending again")
             return Verdict.RESENDING
-        self.outstanding = None
+        self._outstanding = None
         return Verdict.GIVEN_UP
 
     def abandon(self) -> None:
         """The connection ends with a request in flight (the link failed, or the Core stops)."""
-        for outstanding in (self.outstanding, self._held):
+        for outstanding in (self._outstanding, self._held):
             if outstanding is not None and outstanding.purpose in TRACKED_PURPOSES:
                 self._stats.abandoned_at_disconnect += 1
-        self.outstanding = self._held = None
+        self._outstanding = self._held = None
         self._flush_pending = False
 
     def forget_streaks(self) -> None:
@@ -275,7 +280,7 @@ class Exchange:
         """A frame from the base at `now` (`connecting`: in the CONNECT_BASE loop). Returns what
         it settled for the request in flight, or None if it settled nothing yet (a stray frame,
         the base's word on a flush, a line fault or NOT_SYNCED after which the answer may come)."""
-        outstanding = self.outstanding
+        outstanding = self._outstanding
         stats = self._stats
         if outstanding is None or outstanding.resend:
             stats.stray_answers += 1
@@ -330,7 +335,7 @@ class Exchange:
             return Reply(outstanding, None, f"INVALID to {request.NAME}")
         else:
             stats.count_answer(now - outstanding.sent_at)
-        self.outstanding = None
+        self._outstanding = None
         if outstanding.purpose in TRACKED_PURPOSES:
             stats.answered_requests += 1
             self._failed_streak = 0

@@ -182,10 +182,7 @@ class CoreProtocol:
         if step is _Step.SYSTEM_UP:
             return exchange.start(SendEvent(Event.SYSTEM_UP_OK), Purpose.SYSTEM_UP, now)
         # Polling: follow-ups first (POLL_BASE_ANS_CMD, HEALTH_GET_ERROR), then the schedule.
-        schedule = self._schedule
-        if schedule.followups:
-            return exchange.start(schedule.followups.popleft(), Purpose.POLL, now)
-        due = schedule.take_due(now, docking=self._motion.docking)
+        due = self._schedule.take_due(now, docking=self._motion.docking)
         if due is None:
             return None
         name, message = due
@@ -295,7 +292,7 @@ class CoreProtocol:
         self._exchange.forget_streaks()
         self._set_state(ConnectionState.DISCONNECTED, now, reason)
         self._motion.halt("cancelled: the base is disconnected")
-        self._schedule.followups.clear()
+        self._schedule.forget_follow_ups()
         self._health.forget()
         self._last_ctrl_sent = None
         self._telemetry.configured = False
@@ -438,9 +435,9 @@ class CoreProtocol:
             if answer.command is not None:
                 self._offered_command = answer.command
                 self._log("base", f"base offers {command_name(answer.command)} (0x{answer.command:02X})")
-                self._schedule.followups.appendleft(PollBaseAnsCmd())
+                self._schedule.follow_up(PollBaseAnsCmd(), first=True)
         elif isinstance(answer, HealthGetHealthAnswer):
-            self._schedule.followups.extend(self._health.on_health(answer))
+            self._schedule.follow_up(*self._health.on_health(answer))
         elif isinstance(answer, HealthGetErrorAnswer) and isinstance(request, HealthGetError):
             self._health.on_error(request.index, HealthError(answer.error_code, answer.message))
         elif isinstance(request, PollBaseAnsCmd) and self._offered_command is not None:

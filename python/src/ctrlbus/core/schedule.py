@@ -47,12 +47,24 @@ class PollSchedule:
         self._rates = rates
         self._next_due: dict[str, float] = {}
         # Requests an answer calls for; they go before the schedule, oldest first.
-        self.followups: deque[RequestMessage] = deque()
+        self._followups: deque[RequestMessage] = deque()
 
     def restart(self) -> None:
         """A new connection polls from scratch: everything is due at once."""
         self._next_due = {}
-        self.followups.clear()
+        self._followups.clear()
+
+    def follow_up(self, *messages: RequestMessage, first: bool = False) -> None:
+        """Ask `messages` before the periodic requests: after the follow-ups already waiting, or
+        before them if `first`."""
+        if first:
+            self._followups.extendleft(reversed(messages))
+        else:
+            self._followups.extend(messages)
+
+    def forget_follow_ups(self) -> None:
+        """The connection is gone: what its answers called for is no longer asked."""
+        self._followups.clear()
 
     def rate(self, name: str, *, docking: bool) -> float:
         """Hz of the request `name` (0: not polled); `docking` while the Core goes home."""
@@ -66,14 +78,17 @@ class PollSchedule:
 
     def due_time(self, now: float, *, docking: bool) -> float | None:
         """When the next request is due (`now` if a follow-up waits); None if nothing is polled."""
-        if self.followups:
+        if self._followups:
             return now
         dues = [due for name, due in self._next_due.items() if self.rate(name, docking=docking) > 0]
         return min(dues) if dues else None
 
-    def take_due(self, now: float, *, docking: bool) -> tuple[str, RequestMessage | None] | None:
-        """The first periodic request due at `now`, as (name, request), its next period booked;
-        None if none is due. A request due for the first time is due at once."""
+    def take_due(self, now: float, *, docking: bool) -> tuple[str | None, RequestMessage | None] | None:
+        """The request to ask at `now`, as (name, request): the oldest follow-up (name None), else
+        the first periodic request due, its next period booked (request None: SET_V, built by
+        the caller); None if nothing is due. A request due for the first time is due at once."""
+        if self._followups:
+            return None, self._followups.popleft()
         for name, message in SCHEDULE:
             rate = self.rate(name, docking=docking)
             if rate <= 0:
