@@ -2,7 +2,9 @@
 """The Core emulator: a stand-in for the SLAMWARE Core (the bus master).
 
 - `CoreSession` (ctrlbus.core.session): the protocol as a sans-IO state machine (no lock), with
-  controls (velocity, emergency stop, go home, drive, turn) and actions (actions, docking).
+  controls (velocity, emergency stop, go home, drive, turn) and actions (actions, docking). Its
+  parts: protocol (the §11 steps), exchange (the request in flight), schedule, health, readings,
+  motion and journal (time, event log, change topics).
 - `BaseTelemetry` / `LinkTelemetry` (ctrlbus.core.telemetry): what the session knows about the base
   and the link, as typed values; `EventLog` (ctrlbus.core.events): what it did, in words.
 - `CoreRunner` (ctrlbus.core.runner): a thread that connects a session to a `Link` in real time,
