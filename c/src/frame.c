@@ -78,50 +78,44 @@ int32_t ctrlbus_sink_init(ctrlbus_sink_t *sink, ctrlbus_write_fn write, void *co
 void ctrlbus_sink_start(ctrlbus_sink_t *sink, uint8_t cmd, size_t payload_len, bool is_long)
 {
     size_t len_field = payload_len + 1u; /* payload_len <= 65534: exact below */
+    size_t header_len = is_long ? 4u : 3u;
     uint8_t header[4];
-    size_t header_len = 0;
-    header[header_len++] = is_long ? CTRLBUS_FLAG_LONG : CTRLBUS_FLAG_STANDARD;
-    header[header_len++] = (uint8_t)(len_field & 0xFFu);
-    if (is_long) {
-        header[header_len++] = (uint8_t)(len_field >> 8); /* a standard frame has one */
-    }
-    header[header_len++] = cmd;
+    header[0] = is_long ? CTRLBUS_FLAG_LONG : CTRLBUS_FLAG_STANDARD;
+    header[1] = (uint8_t)(len_field & 0xFFu);
+    header[2] = (uint8_t)(len_field >> 8); /* a long frame's; a standard one's cmd goes here */
+    header[header_len - 1u] = cmd;
     sink->status = CTRLBUS_OK;
     sink->checksum = 0;
-    sink->frame_len = (uint32_t)(payload_len + header_len + 1u);
     sink->remaining = (uint16_t)header_len;
-    sink->in_frame = 1;
     ctrlbus_sink_emit(sink, header, header_len);
     sink->remaining = (uint16_t)payload_len;
 }
 
 void ctrlbus_sink_emit(ctrlbus_sink_t *sink, const uint8_t *data, size_t len)
 {
-    if (len > sink->remaining) { /* remaining is 0 outside a frame */
-        ctrlbus_sink_fail(sink, CTRLBUS_ERR_LENGTH); /* so nothing is written */
-        return;
+    int32_t error = CTRLBUS_ERR_LENGTH; /* more than announced (remaining is 0 outside a frame) */
+    if (len <= sink->remaining) {
+        sink->remaining = (uint16_t)(sink->remaining - len);
+        if (sink->status != CTRLBUS_OK || len == 0) {
+            return;
+        }
+        /* (taken before the write: after a failed write the checksum is never written) */
+        sink->checksum = xor_bytes(sink->checksum, data, len);
+        error = sink->write(sink->context, data, len);
     }
-    sink->remaining = (uint16_t)(sink->remaining - len);
-    if (sink->status != CTRLBUS_OK || len == 0) {
-        return;
+    if (error < 0 && sink->status == CTRLBUS_OK) {
+        sink->status = error; /* so nothing more is written */
     }
-    int32_t result = sink->write(sink->context, data, len);
-    if (result < 0) {
-        sink->status = result;
-        return;
-    }
-    sink->checksum = xor_bytes(sink->checksum, data, len);
 }
 
 int32_t ctrlbus_sink_finish(ctrlbus_sink_t *sink)
 {
-    if (sink->remaining != 0u) {
-        ctrlbus_sink_fail(sink, CTRLBUS_ERR_LENGTH);
-    }
-    sink->in_frame = 0;
-    sink->remaining = 1; /* the checksum, which emit folds into itself: it is not read again */
+    size_t payload_left = sink->remaining;
     uint8_t checksum = sink->checksum;
-    ctrlbus_sink_emit(sink, &checksum, 1);
+    sink->remaining = 1; /* the checksum, which emit folds into itself: it is not read again */
+    /* A frame short of its announced payload asks for more than the one byte: LENGTH, and
+     * nothing is written (emit reads no byte then). */
+    ctrlbus_sink_emit(sink, &checksum, payload_left + 1u);
     return sink->status;
 }
 
@@ -141,6 +135,8 @@ int32_t ctrlbus_sink_begin(ctrlbus_sink_t *sink, uint8_t cmd, size_t payload_len
     bool is_long = type == CTRLBUS_FRAME_LONG ||
                    (type == CTRLBUS_FRAME_AUTO && payload_len > CTRLBUS_STANDARD_PAYLOAD_MAX);
     ctrlbus_sink_start(sink, cmd, payload_len, is_long);
+    sink->frame_len = (uint32_t)frame_len;
+    sink->in_frame = 1;
     return sink->status;
 }
 
@@ -211,6 +207,7 @@ int32_t ctrlbus_sink_end(ctrlbus_sink_t *sink)
     if (!sink->in_frame) {
         ctrlbus_sink_fail(sink, CTRLBUS_ERR_LENGTH); /* no checksum is written then */
     }
+    sink->in_frame = 0;
     int32_t result = ctrlbus_sink_finish(sink);
     return result < 0 ? result : (int32_t)sink->frame_len;
 }
