@@ -1230,6 +1230,13 @@ ctrlbus_rx_t ctrlbus_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *f
         return CTRLBUS_RX_NONE;
     }
     if ((d->state & STATE_PENDING_MASK) == 0u) {
+#if CTRLBUS_DECODER_FAST
+        /* Nothing to resume: every call that takes bytes at level 2 has settled them as a scan
+         * would (level 0's push_slow() leaves its byte to this scan). */
+        if (!(d->state & (STATE_RESCAN | STATE_HELD))) {
+            return CTRLBUS_RX_NONE;
+        }
+#endif
         (void)scan(d);
     }
     ctrlbus_rx_t rx = (ctrlbus_rx_t)(d->state & STATE_PENDING_MASK);
