@@ -465,15 +465,25 @@ static void move_to_front(ctrlbus_decoder_t *d)
 #if CTRLBUS_DECODER_FAST
 /* ctrlbus_decoder_take() hands out the frame whose bytes are at bytes[0..): its header and LEN are
  * known. Nothing stays buffered; what the scan would leave behind is settled here (rules 2-3 and
- * the buffer running empty). */
+ * the buffer running empty). Level 2 passes the frame's size instead and stamps the time itself:
+ * four arguments, all in registers on a small MCU. */
 #if CTRLBUS_DECODER_FAST == 1
-IN_LINE
+IN_LINE static ctrlbus_rx_t take_frame(ctrlbus_decoder_t *d, const uint8_t *bytes, uint32_t header,
+                                       uint32_t len_field, uint32_t now_ms, ctrlbus_frame_t *frame)
+#define TAKE_FRAME(d, bytes, header, len_field, size, now_ms, frame)                              \
+    take_frame(d, bytes, header, len_field, now_ms, frame)
 #else
 RARE /* one copy, for push_slow() and take_slow() */
+static ctrlbus_rx_t take_frame(ctrlbus_decoder_t *d, const uint8_t *bytes, uint32_t size,
+                               ctrlbus_frame_t *frame)
+#define TAKE_FRAME(d, bytes, header, len_field, size, now_ms, frame)                              \
+    ((d)->last_byte_ms = (now_ms), take_frame(d, bytes, size, frame))
 #endif
-static ctrlbus_rx_t take_frame(ctrlbus_decoder_t *d, const uint8_t *bytes, uint32_t header,
-                                       uint32_t len_field, uint32_t now_ms, ctrlbus_frame_t *frame)
 {
+#if CTRLBUS_DECODER_FAST != 1
+    uint32_t header = header_size(bytes[0]);
+    uint32_t len_field = size - header - 1u;
+#endif
     if (frame != NULL) {
         frame->is_long = header == 3u;
         frame->cmd = bytes[header];
@@ -486,7 +496,9 @@ static ctrlbus_rx_t take_frame(ctrlbus_decoder_t *d, const uint8_t *bytes, uint3
     d->start = d->end = d->complete_at = 0;
     d->checksum = 0;
     clear_flag(d, STATE_EVENT_SINCE_FRAME | STATE_FLUSHING | STATE_IN_SPAN);
+#if CTRLBUS_DECODER_FAST == 1
     d->last_byte_ms = now_ms;
+#endif
     return CTRLBUS_RX_FRAME;
 }
 #endif
@@ -1297,12 +1309,11 @@ ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte,
                 d->complete_at = complete_at;
             }
         } else if (end + 1u == complete_at) {
-            uint32_t header = header_size(cand[0]);
-            uint32_t len_field = length_field(cand, header);
-            if (len_field == 0u || candidate_xor(cand, complete_at) != 0u) {
-                goto general; /* an empty frame, or a checksum error */
+            if (complete_at == header_size(cand[0]) + 1u || candidate_xor(cand, complete_at) != 0u) {
+                goto general; /* an empty frame (LEN 0), or a checksum error */
             }
-            return take_frame(d, cand, header, len_field, now_ms, frame);
+            d->last_byte_ms = now_ms;
+            return take_frame(d, cand, complete_at, frame);
         }
         d->end = end + 1u;
         d->last_byte_ms = now_ms;
@@ -1442,7 +1453,7 @@ ctrlbus_rx_t ctrlbus_decoder_take_slow(ctrlbus_decoder_t *decoder, const uint8_t
             }
             *data = in + size;
             *len = n - (size_t)size;
-            return take_frame(d, in, header, len_field, now_ms, frame);
+            return TAKE_FRAME(d, in, header, len_field, size, now_ms, frame);
         }
 #if DECODER_SHORTCUTS
         /* More of the buffered candidate, when no timeout applies and it fits the buffer where
@@ -1489,7 +1500,7 @@ ctrlbus_rx_t ctrlbus_decoder_take_slow(ctrlbus_decoder_t *decoder, const uint8_t
                 if (copy_xor(d->buffer + d->end, in, (size_t)need, d->checksum) == 0) {
                     *data = in + need;
                     *len = n - (size_t)need;
-                    return take_frame(d, cand, header, len_field, now_ms, frame);
+                    return TAKE_FRAME(d, cand, header, len_field, complete_at, now_ms, frame);
                 }
             }
         }
