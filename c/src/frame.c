@@ -462,6 +462,24 @@ static void move_to_front(ctrlbus_decoder_t *d)
     d->end = keep;
 }
 
+#if CTRLBUS_DECODER_FAST != 1
+/* Fills in *frame (when not NULL) for the frame of `size` bytes at bytes[0..): the compact core's
+ * one copy of this, for next() and (level 2) take_frame(). */
+#if CTRLBUS_DECODER_FAST
+RARE
+#endif
+static void describe_frame(ctrlbus_frame_t *frame, const uint8_t *bytes, uint32_t size)
+{
+    if (frame != NULL) {
+        uint32_t header = header_size(bytes[0]);
+        frame->is_long = header == 3u;
+        frame->cmd = bytes[header];
+        frame->payload = bytes + header + 1u;
+        frame->payload_len = (size_t)(size - header - 2u);
+    }
+}
+#endif
+
 #if CTRLBUS_DECODER_FAST
 /* ctrlbus_decoder_take() hands out the frame whose bytes are at bytes[0..): its header and LEN are
  * known. Nothing stays buffered; what the scan would leave behind is settled here (rules 2-3 and
@@ -480,16 +498,16 @@ static ctrlbus_rx_t take_frame(ctrlbus_decoder_t *d, const uint8_t *bytes, uint3
     ((d)->last_byte_ms = (now_ms), take_frame(d, bytes, size, frame))
 #endif
 {
-#if CTRLBUS_DECODER_FAST != 1
-    uint32_t header = header_size(bytes[0]);
-    uint32_t len_field = size - header - 1u;
-#endif
+#if CTRLBUS_DECODER_FAST == 1
     if (frame != NULL) {
         frame->is_long = header == 3u;
         frame->cmd = bytes[header];
         frame->payload = bytes + header + 1u;
         frame->payload_len = (size_t)(len_field - 1u);
     }
+#else
+    describe_frame(frame, bytes, size);
+#endif
     if (d->stats != NULL) {
         count(&d->stats->frames);
     }
@@ -1255,15 +1273,8 @@ ctrlbus_rx_t ctrlbus_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *f
     clear_flag(d, STATE_PENDING_MASK);
     if (rx == CTRLBUS_RX_FRAME) {
         /* The frame lies at `start`; scanning resumes after it at the next call. */
-        const uint8_t *bytes = d->buffer + d->start;
-        uint32_t header = header_size(bytes[0]);
         uint32_t size = d->complete_at;
-        if (frame != NULL) {
-            frame->is_long = header == 3u;
-            frame->cmd = bytes[header];
-            frame->payload = bytes + header + 1u;
-            frame->payload_len = (size_t)(size - header - 2u);
-        }
+        describe_frame(frame, d->buffer + d->start, size);
         d->start += size;
         d->complete_at = 0u; /* push()'s inline path waits for a scan */
     }
