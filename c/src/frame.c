@@ -1218,20 +1218,6 @@ size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, siz
             if (run > len - used) {
                 run = len - used;
             }
-        } else if (d->end == 0u && (d->state & STATE_EVENT_SINCE_FRAME)) {
-            /* Rule 1 once its gap's event has been raised: garbage up to the next flag is only
-             * counted (nothing is buffered, so no span applies). */
-            while (used + run <= len && (data[used + run - 1u] | 0x40u) != CTRLBUS_FLAG_LONG) {
-                run++;
-            }
-            if (--run != 0u) {
-                if (d->stats != NULL) {
-                    d->stats->bytes_discarded += (uint32_t)run;
-                }
-                used += run;
-                continue;
-            }
-            run = 1u;
         }
         append(d, data + used, run);
         used += run;

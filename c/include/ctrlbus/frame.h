@@ -265,8 +265,8 @@ void ctrlbus_decoder_reset(ctrlbus_decoder_t *decoder);
  * rescan after it go byte by byte. 0: the compact core alone, the smallest decoder, byte by byte.
  * 2 (the default when compiling with -Os, as MCU firmware is): the compact core with the few fast
  * steps a firmware build needs: ctrlbus_decoder_take() checks a whole frame in place and buffers
- * a frame's start in one copy, a feed copies a candidate's known remainder in one run and counts a
- * quiet garbage run in one step, and push settles a frame's header and last byte itself. The
+ * a frame's start in one copy, a feed copies a candidate's known remainder in one run (garbage
+ * goes byte by byte), and push settles a frame's header and last byte itself. The
  * results are the same at every level (the fuzz target c/fuzz/fuzz_decoder.c compares level 1 with
  * levels 0 and 2, level 2 call by call). For one byte at a time, use ctrlbus_decoder_push() rather
  * than a feed of 1.
