@@ -1091,8 +1091,9 @@ static uint8_t candidate_xor(const uint8_t *cand, uint32_t size)
 
 /* Rules 1-5 over the buffered bytes, from `start`: finds the first result (a frame stays at
  * `start` for next() to hand out) and records it as waiting for next(), or none when more bytes
- * are needed; a rescan is no longer due. Returns whether there is one. */
-static bool scan(ctrlbus_decoder_t *d)
+ * are needed; a rescan is no longer due. Returns it (CTRLBUS_RX_NONE: none; not a bool, which
+ * would cost a conversion). */
+static unsigned scan(ctrlbus_decoder_t *d)
 {
     ctrlbus_rx_t found;
     uint32_t size;
@@ -1158,13 +1159,13 @@ static bool scan(ctrlbus_decoder_t *d)
     d->complete_at = size;
     d->state =
         (uint8_t)((d->state & (uint8_t)~(STATE_PENDING_MASK | STATE_RESCAN)) | (uint8_t)found);
-    return found != CTRLBUS_RX_NONE;
+    return found;
 }
 
 /* What every call that takes bytes does first: the results the buffered bytes still hold, then
  * rule 5 at now_ms (the candidate at the front fails, and the bytes after it are rescanned as
- * stale). Returns whether a result waits. */
-static bool results_first(ctrlbus_decoder_t *d, uint32_t now_ms)
+ * stale). Returns nonzero when a result waits. */
+static unsigned results_first(ctrlbus_decoder_t *d, uint32_t now_ms)
 {
     if (d->state & STATE_PENDING_MASK) {
         return true;
