@@ -1109,9 +1109,10 @@ static unsigned scan(ctrlbus_decoder_t *d)
             unsigned held = d->state & STATE_HELD;
             d->buffer[0] = d->checksum;
             d->start = 0u;
-            d->end = held ? 1u : 0u;
+            d->end = 0u;
             clear_flag(d, STATE_FLUSHING | STATE_IN_SPAN | STATE_HELD);
             if (held) {
+                d->end = 1u;
                 continue;
             }
             found = CTRLBUS_RX_NONE;
@@ -1263,7 +1264,9 @@ ctrlbus_rx_t ctrlbus_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *f
         uint32_t size = d->complete_at;
         describe_frame(frame, d->buffer + d->start, size);
         d->start += size;
-        d->complete_at = 0u; /* push()'s inline path waits for a scan */
+#if CTRLBUS_DECODER_FAST
+        d->complete_at = 0u; /* push()'s inline path waits for a scan (level 0 has none) */
+#endif
     }
     if (rx != CTRLBUS_RX_NONE && (d->start != d->end || (d->state & STATE_HELD))) {
         set_flag(d, STATE_RESCAN); /* more results may wait in the bytes still buffered */
