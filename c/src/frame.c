@@ -1425,7 +1425,11 @@ ctrlbus_rx_t ctrlbus_decoder_take_slow(ctrlbus_decoder_t *decoder, const uint8_t
             if (size > d->max_frame) {
                 return take_general(d, data, len, now_ms, frame);
             }
+#if CTRLBUS_DECODER_FAST == 1
             if (n < header || size > n) {
+#else
+            if (size > n) { /* a header cut short too: with LEN taken as 0, size is header + 1 */
+#endif
 #if CTRLBUS_DECODER_FAST == 2
                 /* the start of a frame that goes on beyond the input: buffer it all, at the
                  * front (the buffer has run empty: the flags of a span go) */
