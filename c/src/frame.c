@@ -483,19 +483,20 @@ static void describe_frame(ctrlbus_frame_t *frame, const uint8_t *bytes, uint32_
 #if CTRLBUS_DECODER_FAST
 /* ctrlbus_decoder_take() hands out the frame whose bytes are at bytes[0..): its header and LEN are
  * known. Nothing stays buffered; what the scan would leave behind is settled here (rules 2-3 and
- * the buffer running empty). Level 2 passes the frame's size instead and stamps the time itself:
- * four arguments, all in registers on a small MCU. */
+ * the buffer running empty). Level 2's callers pass the frame's size instead and stamp the time
+ * themselves: four arguments, all in registers on a small MCU.
+ * TAKE_FRAME() is the call in the code both levels share. */
 #if CTRLBUS_DECODER_FAST == 1
-IN_LINE static ctrlbus_rx_t take_frame(ctrlbus_decoder_t *d, const uint8_t *bytes, uint32_t header,
-                                       uint32_t len_field, uint32_t now_ms, ctrlbus_frame_t *frame)
 #define TAKE_FRAME(d, bytes, header, len_field, size, now_ms, frame)                              \
     take_frame(d, bytes, header, len_field, now_ms, frame)
+IN_LINE static ctrlbus_rx_t take_frame(ctrlbus_decoder_t *d, const uint8_t *bytes, uint32_t header,
+                                       uint32_t len_field, uint32_t now_ms, ctrlbus_frame_t *frame)
 #else
+#define TAKE_FRAME(d, bytes, header, len_field, size, now_ms, frame)                              \
+    ((d)->last_byte_ms = (now_ms), take_frame(d, bytes, size, frame))
 RARE /* one copy, for push_slow() and take_slow() */
 static ctrlbus_rx_t take_frame(ctrlbus_decoder_t *d, const uint8_t *bytes, uint32_t size,
                                ctrlbus_frame_t *frame)
-#define TAKE_FRAME(d, bytes, header, len_field, size, now_ms, frame)                              \
-    ((d)->last_byte_ms = (now_ms), take_frame(d, bytes, size, frame))
 #endif
 {
 #if CTRLBUS_DECODER_FAST == 1
@@ -1043,11 +1044,12 @@ ctrlbus_rx_t ctrlbus_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *f
  * than max_frame, so the byte after it always fits). A candidate's checksum is the XOR of its
  * bytes, taken once when it is complete. d->complete_at holds the size of the frame found (for
  * next()) or, after a scan that found nothing, of the incomplete candidate at the front when its
- * header is buffered (0 otherwise, and after next() hands out a frame): push()'s inline path and
- * feed()'s runs append up to it without a scan. d->checksum holds the byte that STATE_HELD keeps.
- * Between calls only an incomplete candidate (or nothing) is buffered, so a scan that finds nothing
- * new costs O(1), and every call can simply scan first. A result found is held in the state until next() hands it out; after that
- * STATE_RESCAN says that more may wait in the buffered bytes. */
+ * header is buffered (0 otherwise, and after next() hands out a frame at level 2): push()'s inline
+ * path and feed()'s runs append up to it without a scan. d->checksum holds the byte that
+ * STATE_HELD keeps. Between calls only an incomplete candidate (or nothing) is buffered, so a scan
+ * that finds nothing new costs O(1), and every call can simply scan first (level 2's next() skips
+ * even that when nothing is left to resume). A result found is held in the state until next()
+ * hands it out; after that STATE_RESCAN says that more may wait in the buffered bytes. */
 
 /* Rules 1, 2 and 4: drops `drop` bytes at `start` that are not part of a yielded frame, as rx:
  * CTRLBUS_RX_GARBAGE (a byte while hunting), CTRLBUS_RX_EMPTY_FRAME, or a failure (its flag byte).
