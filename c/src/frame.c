@@ -1111,10 +1111,9 @@ static unsigned scan(ctrlbus_decoder_t *d)
             unsigned held = d->state & STATE_HELD;
             d->buffer[0] = d->checksum;
             d->start = 0u;
-            d->end = 0u;
+            d->end = held ? 1u : 0u;
             clear_flag(d, STATE_FLUSHING | STATE_IN_SPAN | STATE_HELD);
             if (held) {
-                d->end = 1u;
                 continue;
             }
             found = CTRLBUS_RX_NONE;
