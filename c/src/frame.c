@@ -78,50 +78,44 @@ int32_t ctrlbus_sink_init(ctrlbus_sink_t *sink, ctrlbus_write_fn write, void *co
 void ctrlbus_sink_start(ctrlbus_sink_t *sink, uint8_t cmd, size_t payload_len, bool is_long)
 {
     size_t len_field = payload_len + 1u; /* payload_len <= 65534: exact below */
+    size_t header_len = is_long ? 4u : 3u;
     uint8_t header[4];
-    size_t header_len = 0;
-    header[header_len++] = is_long ? CTRLBUS_FLAG_LONG : CTRLBUS_FLAG_STANDARD;
-    header[header_len++] = (uint8_t)(len_field & 0xFFu);
-    if (is_long) {
-        header[header_len++] = (uint8_t)(len_field >> 8); /* a standard frame has one */
-    }
-    header[header_len++] = cmd;
+    header[0] = is_long ? CTRLBUS_FLAG_LONG : CTRLBUS_FLAG_STANDARD;
+    header[1] = (uint8_t)(len_field & 0xFFu);
+    header[2] = (uint8_t)(len_field >> 8); /* a long frame's; a standard one's cmd goes here */
+    header[header_len - 1u] = cmd;
     sink->status = CTRLBUS_OK;
     sink->checksum = 0;
-    sink->frame_len = (uint32_t)(payload_len + header_len + 1u);
     sink->remaining = (uint16_t)header_len;
-    sink->in_frame = 1;
     ctrlbus_sink_emit(sink, header, header_len);
     sink->remaining = (uint16_t)payload_len;
 }
 
 void ctrlbus_sink_emit(ctrlbus_sink_t *sink, const uint8_t *data, size_t len)
 {
-    if (len > sink->remaining) { /* remaining is 0 outside a frame */
-        ctrlbus_sink_fail(sink, CTRLBUS_ERR_LENGTH); /* so nothing is written */
-        return;
+    int32_t error = CTRLBUS_ERR_LENGTH; /* more than announced (remaining is 0 outside a frame) */
+    if (len <= sink->remaining) {
+        sink->remaining = (uint16_t)(sink->remaining - len);
+        if (sink->status != CTRLBUS_OK || len == 0) {
+            return;
+        }
+        /* (taken before the write: after a failed write the checksum is never written) */
+        sink->checksum = xor_bytes(sink->checksum, data, len);
+        error = sink->write(sink->context, data, len);
     }
-    sink->remaining = (uint16_t)(sink->remaining - len);
-    if (sink->status != CTRLBUS_OK || len == 0) {
-        return;
+    if (error < 0 && sink->status == CTRLBUS_OK) {
+        sink->status = error; /* so nothing more is written */
     }
-    int32_t result = sink->write(sink->context, data, len);
-    if (result < 0) {
-        sink->status = result;
-        return;
-    }
-    sink->checksum = xor_bytes(sink->checksum, data, len);
 }
 
 int32_t ctrlbus_sink_finish(ctrlbus_sink_t *sink)
 {
-    if (sink->remaining != 0u) {
-        ctrlbus_sink_fail(sink, CTRLBUS_ERR_LENGTH);
-    }
-    sink->in_frame = 0;
-    sink->remaining = 1; /* the checksum, which emit folds into itself: it is not read again */
+    size_t payload_left = sink->remaining;
     uint8_t checksum = sink->checksum;
-    ctrlbus_sink_emit(sink, &checksum, 1);
+    sink->remaining = 1; /* the checksum, which emit folds into itself: it is not read again */
+    /* A frame short of its announced payload asks for more than the one byte: LENGTH, and
+     * nothing is written (emit reads no byte then). */
+    ctrlbus_sink_emit(sink, &checksum, payload_left + 1u);
     return sink->status;
 }
 
@@ -141,6 +135,8 @@ int32_t ctrlbus_sink_begin(ctrlbus_sink_t *sink, uint8_t cmd, size_t payload_len
     bool is_long = type == CTRLBUS_FRAME_LONG ||
                    (type == CTRLBUS_FRAME_AUTO && payload_len > CTRLBUS_STANDARD_PAYLOAD_MAX);
     ctrlbus_sink_start(sink, cmd, payload_len, is_long);
+    sink->frame_len = (uint32_t)frame_len;
+    sink->in_frame = 1;
     return sink->status;
 }
 
@@ -211,6 +207,7 @@ int32_t ctrlbus_sink_end(ctrlbus_sink_t *sink)
     if (!sink->in_frame) {
         ctrlbus_sink_fail(sink, CTRLBUS_ERR_LENGTH); /* no checksum is written then */
     }
+    sink->in_frame = 0;
     int32_t result = ctrlbus_sink_finish(sink);
     return result < 0 ? result : (int32_t)sink->frame_len;
 }
@@ -465,31 +462,62 @@ static void move_to_front(ctrlbus_decoder_t *d)
     d->end = keep;
 }
 
+#if CTRLBUS_DECODER_FAST != 1
+/* Fills in *frame (when not NULL) for the frame of `size` bytes at bytes[0..): the compact core's
+ * one copy of this, for next() and (level 2) take_frame(). */
+#if CTRLBUS_DECODER_FAST
+RARE
+#endif
+static void describe_frame(ctrlbus_frame_t *frame, const uint8_t *bytes, uint32_t size)
+{
+    if (frame != NULL) {
+        uint32_t header = header_size(bytes[0]);
+        frame->is_long = header == 3u;
+        frame->cmd = bytes[header];
+        frame->payload = bytes + header + 1u;
+        frame->payload_len = (size_t)(size - header - 2u);
+    }
+}
+#endif
+
 #if CTRLBUS_DECODER_FAST
 /* ctrlbus_decoder_take() hands out the frame whose bytes are at bytes[0..): its header and LEN are
  * known. Nothing stays buffered; what the scan would leave behind is settled here (rules 2-3 and
- * the buffer running empty). */
+ * the buffer running empty). Level 2's callers pass the frame's size instead and stamp the time
+ * themselves: four arguments, all in registers on a small MCU.
+ * TAKE_FRAME() is the call in the code both levels share. */
 #if CTRLBUS_DECODER_FAST == 1
-IN_LINE
-#else
-RARE /* one copy, for push_slow() and take_slow() */
-#endif
-static ctrlbus_rx_t take_frame(ctrlbus_decoder_t *d, const uint8_t *bytes, uint32_t header,
+#define TAKE_FRAME(d, bytes, header, len_field, size, now_ms, frame)                              \
+    take_frame(d, bytes, header, len_field, now_ms, frame)
+IN_LINE static ctrlbus_rx_t take_frame(ctrlbus_decoder_t *d, const uint8_t *bytes, uint32_t header,
                                        uint32_t len_field, uint32_t now_ms, ctrlbus_frame_t *frame)
+#else
+#define TAKE_FRAME(d, bytes, header, len_field, size, now_ms, frame)                              \
+    ((d)->last_byte_ms = (now_ms), take_frame(d, bytes, size, frame))
+RARE /* one copy, for push_slow() and take_slow() */
+static ctrlbus_rx_t take_frame(ctrlbus_decoder_t *d, const uint8_t *bytes, uint32_t size,
+                               ctrlbus_frame_t *frame)
+#endif
 {
+#if CTRLBUS_DECODER_FAST == 1
     if (frame != NULL) {
         frame->is_long = header == 3u;
         frame->cmd = bytes[header];
         frame->payload = bytes + header + 1u;
         frame->payload_len = (size_t)(len_field - 1u);
     }
+#else
+    describe_frame(frame, bytes, size);
+#endif
     if (d->stats != NULL) {
         count(&d->stats->frames);
     }
     d->start = d->end = d->complete_at = 0;
     d->checksum = 0;
     clear_flag(d, STATE_EVENT_SINCE_FRAME | STATE_FLUSHING | STATE_IN_SPAN);
+#if CTRLBUS_DECODER_FAST == 1
     d->last_byte_ms = now_ms;
+#endif
     return CTRLBUS_RX_FRAME;
 }
 #endif
@@ -1016,11 +1044,12 @@ ctrlbus_rx_t ctrlbus_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *f
  * than max_frame, so the byte after it always fits). A candidate's checksum is the XOR of its
  * bytes, taken once when it is complete. d->complete_at holds the size of the frame found (for
  * next()) or, after a scan that found nothing, of the incomplete candidate at the front when its
- * header is buffered (0 otherwise, and after next() hands out a frame): push()'s inline path and
- * feed()'s runs append up to it without a scan. d->checksum holds the byte that STATE_HELD keeps.
- * Between calls only an incomplete candidate (or nothing) is buffered, so a scan that finds nothing
- * new costs O(1), and every call can simply scan first. A result found is held in the state until next() hands it out; after that
- * STATE_RESCAN says that more may wait in the buffered bytes. */
+ * header is buffered (0 otherwise, and after next() hands out a frame at level 2): push()'s inline
+ * path and feed()'s runs append up to it without a scan. d->checksum holds the byte that
+ * STATE_HELD keeps. Between calls only an incomplete candidate (or nothing) is buffered, so a scan
+ * that finds nothing new costs O(1), and every call can simply scan first (level 2's next() skips
+ * even that when nothing is left to resume). A result found is held in the state until next()
+ * hands it out; after that STATE_RESCAN says that more may wait in the buffered bytes. */
 
 /* Rules 1, 2 and 4: drops `drop` bytes at `start` that are not part of a yielded frame, as rx:
  * CTRLBUS_RX_GARBAGE (a byte while hunting), CTRLBUS_RX_EMPTY_FRAME, or a failure (its flag byte).
@@ -1064,8 +1093,9 @@ static uint8_t candidate_xor(const uint8_t *cand, uint32_t size)
 
 /* Rules 1-5 over the buffered bytes, from `start`: finds the first result (a frame stays at
  * `start` for next() to hand out) and records it as waiting for next(), or none when more bytes
- * are needed; a rescan is no longer due. Returns whether there is one. */
-static bool scan(ctrlbus_decoder_t *d)
+ * are needed; a rescan is no longer due. Returns it (CTRLBUS_RX_NONE: none; not a bool, which
+ * would cost a conversion). */
+static unsigned scan(ctrlbus_decoder_t *d)
 {
     ctrlbus_rx_t found;
     uint32_t size;
@@ -1131,13 +1161,13 @@ static bool scan(ctrlbus_decoder_t *d)
     d->complete_at = size;
     d->state =
         (uint8_t)((d->state & (uint8_t)~(STATE_PENDING_MASK | STATE_RESCAN)) | (uint8_t)found);
-    return found != CTRLBUS_RX_NONE;
+    return found;
 }
 
 /* What every call that takes bytes does first: the results the buffered bytes still hold, then
  * rule 5 at now_ms (the candidate at the front fails, and the bytes after it are rescanned as
- * stale). Returns whether a result waits. */
-static bool results_first(ctrlbus_decoder_t *d, uint32_t now_ms)
+ * stale). Returns nonzero when a result waits. */
+static unsigned results_first(ctrlbus_decoder_t *d, uint32_t now_ms)
 {
     if (d->state & STATE_PENDING_MASK) {
         return true;
@@ -1191,20 +1221,6 @@ size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, siz
             if (run > len - used) {
                 run = len - used;
             }
-        } else if (d->end == 0u && (d->state & STATE_EVENT_SINCE_FRAME)) {
-            /* Rule 1 once its gap's event has been raised: garbage up to the next flag is only
-             * counted (nothing is buffered, so no span applies). */
-            while (used + run <= len && (data[used + run - 1u] | 0x40u) != CTRLBUS_FLAG_LONG) {
-                run++;
-            }
-            if (--run != 0u) {
-                if (d->stats != NULL) {
-                    d->stats->bytes_discarded += (uint32_t)run;
-                }
-                used += run;
-                continue;
-            }
-            run = 1u;
         }
         append(d, data + used, run);
         used += run;
@@ -1233,23 +1249,25 @@ ctrlbus_rx_t ctrlbus_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *f
         return CTRLBUS_RX_NONE;
     }
     if ((d->state & STATE_PENDING_MASK) == 0u) {
+#if CTRLBUS_DECODER_FAST
+        /* Nothing to resume: every call that takes bytes at level 2 has settled them as a scan
+         * would (level 0's push_slow() leaves its byte to this scan). */
+        if (!(d->state & (STATE_RESCAN | STATE_HELD))) {
+            return CTRLBUS_RX_NONE;
+        }
+#endif
         (void)scan(d);
     }
     ctrlbus_rx_t rx = (ctrlbus_rx_t)(d->state & STATE_PENDING_MASK);
     clear_flag(d, STATE_PENDING_MASK);
     if (rx == CTRLBUS_RX_FRAME) {
         /* The frame lies at `start`; scanning resumes after it at the next call. */
-        const uint8_t *bytes = d->buffer + d->start;
-        uint32_t header = header_size(bytes[0]);
         uint32_t size = d->complete_at;
-        if (frame != NULL) {
-            frame->is_long = header == 3u;
-            frame->cmd = bytes[header];
-            frame->payload = bytes + header + 1u;
-            frame->payload_len = (size_t)(size - header - 2u);
-        }
+        describe_frame(frame, d->buffer + d->start, size);
         d->start += size;
-        d->complete_at = 0u; /* push()'s inline path waits for a scan */
+#if CTRLBUS_DECODER_FAST
+        d->complete_at = 0u; /* push()'s inline path waits for a scan (level 0 has none) */
+#endif
     }
     if (rx != CTRLBUS_RX_NONE && (d->start != d->end || (d->state & STATE_HELD))) {
         set_flag(d, STATE_RESCAN); /* more results may wait in the bytes still buffered */
@@ -1293,12 +1311,11 @@ ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte,
                 d->complete_at = complete_at;
             }
         } else if (end + 1u == complete_at) {
-            uint32_t header = header_size(cand[0]);
-            uint32_t len_field = length_field(cand, header);
-            if (len_field == 0u || candidate_xor(cand, complete_at) != 0u) {
-                goto general; /* an empty frame, or a checksum error */
+            if (complete_at == header_size(cand[0]) + 1u || candidate_xor(cand, complete_at) != 0u) {
+                goto general; /* an empty frame (LEN 0), or a checksum error */
             }
-            return take_frame(d, cand, header, len_field, now_ms, frame);
+            d->last_byte_ms = now_ms;
+            return take_frame(d, cand, complete_at, frame);
         }
         d->end = end + 1u;
         d->last_byte_ms = now_ms;
@@ -1409,7 +1426,11 @@ ctrlbus_rx_t ctrlbus_decoder_take_slow(ctrlbus_decoder_t *decoder, const uint8_t
             if (size > d->max_frame) {
                 return take_general(d, data, len, now_ms, frame);
             }
+#if CTRLBUS_DECODER_FAST == 1
             if (n < header || size > n) {
+#else
+            if (size > n) { /* a header cut short too: with LEN taken as 0, size is header + 1 */
+#endif
 #if CTRLBUS_DECODER_FAST == 2
                 /* the start of a frame that goes on beyond the input: buffer it all, at the
                  * front (the buffer has run empty: the flags of a span go) */
@@ -1438,7 +1459,7 @@ ctrlbus_rx_t ctrlbus_decoder_take_slow(ctrlbus_decoder_t *decoder, const uint8_t
             }
             *data = in + size;
             *len = n - (size_t)size;
-            return take_frame(d, in, header, len_field, now_ms, frame);
+            return TAKE_FRAME(d, in, header, len_field, size, now_ms, frame);
         }
 #if DECODER_SHORTCUTS
         /* More of the buffered candidate, when no timeout applies and it fits the buffer where
@@ -1485,7 +1506,7 @@ ctrlbus_rx_t ctrlbus_decoder_take_slow(ctrlbus_decoder_t *decoder, const uint8_t
                 if (copy_xor(d->buffer + d->end, in, (size_t)need, d->checksum) == 0) {
                     *data = in + need;
                     *len = n - (size_t)need;
-                    return take_frame(d, cand, header, len_field, now_ms, frame);
+                    return TAKE_FRAME(d, cand, header, len_field, complete_at, now_ms, frame);
                 }
             }
         }

@@ -341,6 +341,14 @@ static void test_sink_length_mismatch_is_reported(void)
     CHECK_EQ(ctrlbus_sink_begin(&sink, 0x01, 0, CTRLBUS_FRAME_AUTO), CTRLBUS_OK);
     CHECK_EQ(ctrlbus_sink_end(&sink), 4);
 
+    /* A second end after a whole frame: no frame is open, so LENGTH and nothing written. */
+    rec.len = 0;
+    CHECK_EQ(ctrlbus_sink_end(&sink), CTRLBUS_ERR_LENGTH);
+    CHECK_EQ(rec.len, 0);
+    CHECK_EQ(ctrlbus_sink_begin(&sink, 0x01, 0, CTRLBUS_FRAME_LONG), CTRLBUS_OK);
+    CHECK_EQ(ctrlbus_sink_end(&sink), 5);
+    CHECK_EQ(rec.len, 5);
+
     /* A payload too big for the type. */
     CHECK_EQ(ctrlbus_sink_begin(&sink, 0x01, 255, CTRLBUS_FRAME_STANDARD), CTRLBUS_ERR_TOO_BIG);
     CHECK_EQ(ctrlbus_sink_end(&sink), CTRLBUS_ERR_TOO_BIG);
@@ -365,6 +373,14 @@ static void test_sink_write_failure_stops_the_frame(void)
     rec = (recorder_t){0};
     rec.fail_at_call = 1;
     CHECK_EQ(ctrlbus_frame_write(&sink, 0x01, NULL, 0, CTRLBUS_FRAME_AUTO), CTRLBUS_ERR_IO);
+
+    /* The first error stays: a failed header, then too few payload bytes, is still IO. */
+    rec = (recorder_t){0};
+    rec.fail_at_call = 1;
+    CHECK_EQ(ctrlbus_sink_begin(&sink, 0x01, 2, CTRLBUS_FRAME_AUTO), CTRLBUS_ERR_IO);
+    ctrlbus_sink_put_u8(&sink, 1);
+    CHECK_EQ(ctrlbus_sink_end(&sink), CTRLBUS_ERR_IO);
+    CHECK_EQ(rec.calls, 1);
 }
 
 static void test_buffer_sink_overflow(void)

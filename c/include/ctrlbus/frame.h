@@ -72,7 +72,7 @@ typedef int32_t (*ctrlbus_write_fn)(void *context, const uint8_t *data, size_t l
 typedef struct {
     ctrlbus_write_fn write;
     void *context;
-    uint32_t frame_len; /* whole size of the current frame */
+    uint32_t frame_len; /* whole size of the current frame (kept by ctrlbus_sink_begin()) */
     int32_t status;     /* the first error, sticky until the next ctrlbus_sink_begin() */
     uint16_t remaining; /* payload bytes still to come in the current frame (at most 65534) */
     uint8_t checksum;   /* XOR of everything written in the current frame */
@@ -265,17 +265,17 @@ void ctrlbus_decoder_reset(ctrlbus_decoder_t *decoder);
  * rescan after it go byte by byte. 0: the compact core alone, the smallest decoder, byte by byte.
  * 2 (the default when compiling with -Os, as MCU firmware is): the compact core with the few fast
  * steps a firmware build needs: ctrlbus_decoder_take() checks a whole frame in place and buffers
- * a frame's start in one copy, a feed copies a candidate's known remainder in one run and counts a
- * quiet garbage run in one step, and push settles a frame's header and last byte itself. The
+ * a frame's start in one copy, a feed copies a candidate's known remainder in one run (garbage
+ * goes byte by byte), and push settles a frame's header and last byte itself. The
  * results are the same at every level (the fuzz target c/fuzz/fuzz_decoder.c compares level 1 with
  * levels 0 and 2, level 2 call by call). For one byte at a time, use ctrlbus_decoder_push() rather
  * than a feed of 1.
  * Measured with callgrind on x86-64 (bench/c/ctrlbus_parse.c, a Core<->base session, the caller's
  * loop included; docs/performance.md has the current figures): fed in 64-byte chunks about 9
- * instructions per byte at -O2 (level 1) and 25 at -Os (level 2), against about 68 at level 0;
- * ctrlbus_decoder_take() on the same chunks about 3.2 (inlined) and 10. Code on a Cortex-M0+ at
- * -Os (arm-none-eabi-gcc, frame.c's whole decoder): level 0 about 1.0 KB, of which a base that
- * uses push, next and tick links about 0.7 KB; level 2 about 1.7 KB (1.6 KB linked into the
+ * instructions per byte at -O2 (level 1) and 24 at -Os (level 2), against about 68 at level 0;
+ * ctrlbus_decoder_take() on the same chunks about 3.2 (inlined) and 9.4. Code on a Cortex-M0+ at
+ * -Os (arm-none-eabi-gcc, frame.c's whole decoder): level 0 about 0.9 KB, of which a base that
+ * uses push, next and tick links about 0.7 KB; level 2 about 1.5 KB (1.4 KB linked into the
  * default base); level 1 about 3.5 KB. Set CTRLBUS_DECODER_FAST=0 where flash matters more than
  * cycles. */
 size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, size_t len,
@@ -369,7 +369,7 @@ static inline uint8_t ctrlbus_xor_in_place_(const uint8_t *bytes, uint32_t n)
  * the start of one and a garbage run are settled by ctrlbus_decoder_take_slow() in one step each
  * (a copy into the buffer); failures and the rescan after them take the feed's path (see
  * ctrlbus_decoder_feed()). Over a Core<->base session in 64-byte chunks about 3.2 instructions
- * per byte at -O2 and 10 at -Os on x86-64, the caller's loop included (docs/performance.md).
+ * per byte at -O2 and 9.4 at -Os on x86-64, the caller's loop included (docs/performance.md).
  * At level 2 (CTRLBUS_DECODER_FAST 2) take_slow() settles only the in-place frame and a frame's
  * start in one step; the rest is the feed loop. At level 0 it is the feed loop, but for the
  * inline case (CTRLBUS_DECODER_INLINE). ctrlbus_decoder_take_slow() is the same function
@@ -449,7 +449,7 @@ static inline ctrlbus_rx_t ctrlbus_decoder_take(ctrlbus_decoder_t *decoder, cons
  * path, whose cost is described at ctrlbus_decoder_feed(). With CTRLBUS_DECODER_INLINE (the
  * default unless optimising for size, below) a frame's header and last byte and quiet garbage take
  * inline paths too (level 1 only), and a clean frame makes no call at all. Over a Core<->base
- * session that averages about 18 instructions per byte at -O2 and 24 at -Os on x86-64, calls
+ * session that averages about 18 instructions per byte at -O2 and 22 at -Os on x86-64, calls
  * included (bench/c/ctrlbus_parse.c; docs/performance.md). At level 0 (CTRLBUS_DECODER_FAST 0, the
  * smallest build) push has no inline path at all: each byte is a call of push_slow(), which is a
  * feed of that byte and a ctrlbus_decoder_next(). ctrlbus_decoder_push_slow() is the same function
