@@ -75,15 +75,15 @@
  *
  * Footprint: ctrlbus_base_t is 64 bytes on a 32-bit MCU (scripts/size.sh prints it), besides the
  * caller's rx_ring, frame_buffer and the optional health and command storage. ctrlbus_base_poll()
- * needs at most 256 bytes of C stack on a Cortex-M0+ at -Os in the default configuration
+ * needs at most 248 bytes of C stack on a Cortex-M0+ at -Os in the default configuration
  * (`make size` prints the worst case per target, from -fstack-usage along the call graph; other
  * cores and -O2 differ: 288 B on RV32 at -Os), plus what the handlers and write use. Answering
- * a request takes at most that, poll included, whether a handler runs (the deepest: a velocity
- * command through the limits) or the answer is written, and the decoder's take() path stays
- * below it: the storage of the answer a
- * handler fills (64 bytes, GET_BASE_SENSOR_DATA's, the largest; GET_BASE_CONF and the 0x21 blob
- * are written from the application's storage) and the frame writer are on the stack while
- * either runs. Features can be compiled out (ctrlbus/ctrlbus_config.h).
+ * a request takes at most that, poll included, whether the answer is written (the deepest: the
+ * field writer into the sink) or a handler runs (a velocity command through the limits), and the
+ * decoder's take() path stays below it: the storage of the answer a handler fills (64 bytes,
+ * GET_BASE_SENSOR_DATA's, the largest; GET_BASE_CONF and the 0x21 blob are written from the
+ * application's storage) is on the stack while either runs, the frame writer only while the
+ * answer is written. Features can be compiled out (ctrlbus/ctrlbus_config.h).
  *
  * Behaviour: what the stack does by itself (docs/protocol.md has the wire rules it follows):
  *  1. Order. ctrlbus_base_poll() runs the motor watchdog (6), then takes the bytes that were in

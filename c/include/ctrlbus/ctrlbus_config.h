@@ -17,9 +17,9 @@
  *     ctrlbus_base_init() refuses (CTRLBUS_ERR_UNSUPPORTED) a config that asks for it.
  *
  * The size effects are .text bytes of the base stack on cortex-m0plus, arm-none-eabi-gcc 12 -Os,
- * linked with --gc-sections, each switch turned off alone from the default build (5,101 B). All
- * off together, with the decoder's bulk path off too (the minimal configuration), save 2,159 B
- * (2,942 B left). Measured with `make size`, which prints both configurations for every target;
+ * linked with --gc-sections, each switch turned off alone from the default build (4,842 B). All
+ * off together, with the decoder's bulk path off too (the minimal configuration), save 2,026 B
+ * (2,816 B left). Measured with `make size`, which prints both configurations for every target;
  * docs/performance.md tables them.
  */
 #ifndef CTRLBUS_CTRLBUS_CONFIG_H
@@ -33,7 +33,7 @@
  * watchdog's health warning). Off: HEALTH_GET_HEALTH (mandatory) answers no errors,
  * HEALTH_GET_ERROR and HEALTH_CLR_ERROR answer 0x8002 (no such error, as with an empty registry),
  * ctrlbus_base_health_add/_clear return CTRLBUS_ERR_UNSUPPORTED, and a config with
- * health_entries is refused. Size effect: 433 B. */
+ * health_entries is refused. Size effect: 428 B. */
 #ifndef CTRLBUS_CONFIG_HEALTH
 #define CTRLBUS_CONFIG_HEALTH 1
 #endif
@@ -42,7 +42,7 @@
  * pending command, the nCMD line callback). Off: POLL_BASE_CMD (mandatory) always answers
  * "nothing pending", POLL_BASE_ANS_CMD answers OK, ctrlbus_base_queue_command returns
  * CTRLBUS_ERR_UNSUPPORTED, and a config with command_queue storage is refused.
- * Size effect: 238 B. */
+ * Size effect: 234 B. */
 #ifndef CTRLBUS_CONFIG_COMMAND_QUEUE
 #define CTRLBUS_CONFIG_COMMAND_QUEUE 1
 #endif
@@ -76,7 +76,7 @@
  * (src/messages_master.c), so a base firmware linked with --gc-sections never pays for them;
  * off, they are neither compiled nor declared (using one is a compile error).
  * Size effect on the base stack: 0 B (they were never linked into it); on the whole library
- * (every object, unlinked): 1,659 B (src/messages_master.c). */
+ * (every object, unlinked): 1,661 B (src/messages_master.c). */
 #ifndef CTRLBUS_CONFIG_MASTER_CODECS
 #define CTRLBUS_CONFIG_MASTER_CODECS 1
 #endif
@@ -88,9 +88,9 @@
  * inline path). The default is 1, or 2 when compiling with -Os (as MCU firmware is). Every level
  * gives the same results on the wire; the levels trade code for speed (docs/performance.md). The
  * minimal configuration has it off. Size effect (frame.c's decoder, cortex-m0plus -Os): level 0
- * about 0.7 KB linked into a base that uses push, next and tick; level 2 about 1.6 KB in the
+ * about 0.7 KB linked into a base that uses push, next and tick; level 2 about 1.4 KB in the
  * default base; level 1 about 3.5 KB (ctrlbus/frame.h at ctrlbus_decoder_feed()). The default
- * base stack is 4,097 B at level 0, 5,101 B at level 2 and 6,765 B at level 1. */
+ * base stack is 3,966 B at level 0, 4,842 B at level 2 and 6,646 B at level 1. */
 #ifndef CTRLBUS_DECODER_FAST
 #if defined(__OPTIMIZE_SIZE__)
 #define CTRLBUS_DECODER_FAST 2
