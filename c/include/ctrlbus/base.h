@@ -379,7 +379,7 @@ size_t ctrlbus_base_feed(ctrlbus_base_t *base, const uint8_t *data, size_t len);
  * plus for each request one look-up in the request table (17 rows), its handler, and the
  * answer's size in byte visits (one write call per run of integer fields, per text byte, and for
  * the header and the checksum); no work beyond the ring's content at entry. Stack: see
- * "Footprint" above (at most 256 bytes on a Cortex-M0+, plus the handlers' and write's). */
+ * "Footprint" above (at most 248 bytes on a Cortex-M0+, plus the handlers' and write's). */
 void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms);
 
 /* A new line: the host connected a new peer (a new TCP connection, a re-plugged cable), so the
