@@ -763,7 +763,7 @@ static NOINLINE uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t
  * not while a handler runs. (Inlined into answer() it saves 20-24 B on a Cortex-M0+, but costs
  * 8 B of poll's worst stack there, and 84 B of flash and 28 B of stack on the Uno.) */
 static NOINLINE void send(const ctrlbus_base_config_t *config, uint8_t cmd, bool is_long,
-                 const reply_t *reply)
+                          const reply_t *reply)
 {
     ctrlbus_sink_t sink;
     sink.write = config->write; /* the rest is set by start */
