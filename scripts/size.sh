@@ -16,6 +16,8 @@
 #
 #   scripts/size.sh            all three CPUs, all five targets
 #   CPUS="cortex-m3" TARGETS="cortex-m3 atmega328p" scripts/size.sh
+#   EXTRA_CFLAGS="-DNAME=1" scripts/size.sh   every build compiled with these flags too (a measured
+#                                             variant, e.g. bench/experiments/footprint-limits/)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -24,7 +26,8 @@ CC="${CROSS}gcc"
 SIZE="${CROSS}size"
 NM="${CROSS}nm"
 CPUS=${CPUS:-"cortex-m0plus cortex-m3 cortex-m4"}
-CFLAGS=(-std=c99 -Os -ffunction-sections -fdata-sections -Wall -Wextra -Werror -Ic/include)
+read -r -a EXTRA <<<"${EXTRA_CFLAGS:-}"
+CFLAGS=(-std=c99 -Os -ffunction-sections -fdata-sections -Wall -Wextra -Werror -Ic/include "${EXTRA[@]}")
 
 if ! command -v "$CC" >/dev/null; then
   echo "size.sh: $CC not found; scripts/setup.sh installs it (apt package gcc-arm-none-eabi)" >&2
@@ -163,7 +166,7 @@ build_base() {
     local obj="$dir/$(basename "${src%.c}").o"
     # shellcheck disable=SC2086
     (cd "$dir" && "$cc" $flags -std=c99 "$opt" -ffunction-sections -fdata-sections -fstack-usage \
-      "${WARNINGS[@]}" -I"$OLDPWD/c/include" "$@" -c "$OLDPWD/$src" -o "$obj")
+      "${WARNINGS[@]}" -I"$OLDPWD/c/include" "${EXTRA[@]}" "$@" -c "$OLDPWD/$src" -o "$obj")
     objs+=("$obj")
   done
   for fn in $base_roots; do keep+=("-Wl,--undefined=$fn"); done
