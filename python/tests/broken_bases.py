@@ -219,6 +219,31 @@ class DropsBehindGarbage(RewritingStack):
         return data[:at] if at > 0 else data  # garbage in front of a request: the garbage only
 
 
+class LineFaultsAfterChecksumErrors(RewritingStack):
+    """The first `times` requests after a checksum-error report are not executed but answered
+    ERROR 0x0090 (not synchronised + a frame was ready): what the reference does to a request
+    that arrives while its report is still being sent. A Core resends such a request; a base
+    that answers it when sent again works with a Core (a warning), one that never does fails."""
+
+    def __init__(self, times: int) -> None:
+        super().__init__(simulated_base())
+        self.times = times
+        self._to_refuse = 0
+        self._refusing = False
+
+    def change_input(self, data: bytes, requests: list[Frame], now: float) -> bytes:
+        self._refusing = bool(requests) and self._to_refuse > 0
+        return b"" if self._refusing else data
+
+    def change_output(self, answer: bytes, requests: list[Frame], now: float) -> bytes:
+        if self._refusing:
+            self._to_refuse -= 1
+            return error_frame(0x0090)
+        if any(error_code(frame) in (0x0040, 0x00C0) for frame in frames_of(answer)):
+            self._to_refuse = self.times
+        return answer
+
+
 def complete_blob(robot_size_m: float) -> bytes:
     """The example blob with the simulated base's two IR channels listed too (as plain-string
     type "ir"), so that it describes every distance sensor: only `robot_size_m` can disagree."""

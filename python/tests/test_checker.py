@@ -35,6 +35,7 @@ from broken_bases import (
     BrokenBase,
     DelayedLink,
     DropsBehindGarbage,
+    LineFaultsAfterChecksumErrors,
     ReadsAnyLength,
     RewritingStack,
     complete_blob,
@@ -325,6 +326,25 @@ def test_a_base_that_drops_a_request_without_an_error_answer_fails() -> None:
     (result,) = report.results
     assert result.status is Status.FAIL, explain(report)
     assert "no ERROR said it was dropped" in result.message
+
+
+def test_a_probe_answered_by_a_line_fault_is_sent_again_as_a_core_does() -> None:
+    """The reference may answer the request after a checksum-error report 0x0090 (it arrived
+    while the report was being sent); a Core resends it, and so does the checker."""
+    checksum_check = fast(only={NUMBER_OF["checksum-error"]})
+    report = run_checks_against(LineFaultsAfterChecksumErrors(times=1), checksum_check)
+    (result,) = report.results
+    assert result.status is Status.WARN, explain(report)
+    assert "ERROR 0x0090 (0x0010 not synchronised + 0x0080 a frame was ready) before OK" in result.message
+    assert "a Core resends" in result.message
+
+
+def test_a_base_that_answers_only_line_faults_after_a_checksum_error_fails() -> None:
+    checksum_check = fast(only={NUMBER_OF["checksum-error"]})
+    report = run_checks_against(LineFaultsAfterChecksumErrors(times=99), checksum_check)
+    (result,) = report.results
+    assert result.status is Status.FAIL, explain(report)
+    assert "a valid GET_BASE_STATUS was answered ERROR 0x0090" in result.message
 
 
 def test_both_configurations_of_our_base_agree_when_its_blob_is_complete() -> None:
