@@ -80,11 +80,6 @@ STATUS_REQUEST = ctrl(bytes((Request.GET_BASE_STATUS,)))
 LINE_FAULT_RESENDS = 3
 
 
-def _is_line_fault_answer(frame: Frame) -> bool:
-    code = error_code_of(frame)
-    return code is not None and code < LINE_FAULT_LIMIT
-
-
 def _answer_as_core(ctx: CheckContext, data: bytes, what: str) -> tuple[Frame | None, list[int]]:
     """Sends `data` and takes its answer as a Core does: an ERROR below 0x0100 is a line fault
     (§11.6 [line-faults]), after which the real answer may still come within the Core's grace;
@@ -92,13 +87,14 @@ def _answer_as_core(ctx: CheckContext, data: bytes, what: str) -> tuple[Frame | 
     answer (None: none came) and the line-fault codes met on the way."""
     faults: list[int] = []
     frame = ctx.prober.exchange(data, what).frame
-    while frame is not None and _is_line_fault_answer(frame) and len(faults) < LINE_FAULT_RESENDS:
-        faults.append(error_code_of(frame) or 0)
-        _, frame, _ = _until(
-            ctx, ctx.now, CoreConfig.transport_error_grace_s, lambda got: not _is_line_fault_answer(got)
-        )
+    code = None if frame is None else error_code_of(frame)
+    while code is not None and is_line_fault(code) and len(faults) < LINE_FAULT_RESENDS:
+        faults.append(code)
+        grace_s = CoreConfig.transport_error_grace_s
+        _, frame, _ = _until(ctx, ctx.now, grace_s, lambda got: not is_line_fault(error_code_of(got)))
         if frame is None:
             frame = ctx.prober.exchange(data, f"{what}, sent again as a Core does").frame
+        code = None if frame is None else error_code_of(frame)
     return frame, faults
 
 
