@@ -26,6 +26,7 @@ APT_GROUP[ports]="qemu-system-misc gcc-avr avr-libc binutils-avr gcc-riscv64-unk
 APT_GROUP[sigrok]="sigrok-cli"                                          # sigrok decoder test (tools/sigrok)
 APT_GROUP[pictures]="graphviz mscgen fonts-dejavu-core"                 # make pictures (docs/diagrams)
 APT_GROUP[packaging]="git pkg-config"                                   # release and consumer tests
+APT_GROUP[stress]="stress-ng"                                           # make test-stress (loads both cores)
 
 # which apt groups and Python set-up each choice needs
 case "${1:-demo}" in
