@@ -21,6 +21,11 @@ The model:
 
 The session holds no lock. A test that reads or commands it from another thread while the loop
 runs gives the loop a `lock` (taken around each call into the session) and takes it too.
+
+`VirtualLink` is the same model seen from a master that does its own I/O (the conformance
+checker): a `Link` to the base whose `read(timeout)` runs the simulated clock forward instead of
+waiting, with `clock()` and `sleep()` to give that master for its own sense of time. Nothing then
+depends on how busy the host is: a slow moment of the host is no time at all on the line.
 """
 
 from __future__ import annotations
@@ -33,7 +38,7 @@ from contextlib import AbstractContextManager
 from typing import Any, Protocol
 
 from ctrlbus.core.session import CoreSession
-from ctrlbus.errors import UsageError
+from ctrlbus.errors import LinkError, UsageError
 
 __all__ = [
     "DEFAULT_BASE_LATENCY_S",
@@ -43,6 +48,7 @@ __all__ = [
     "SansIoBase",
     "SerialLine",
     "VirtualBus",
+    "VirtualLink",
 ]
 
 DEFAULT_BYTE_TIME_S = 10 / 115200  # one 8N1 character at 115200 baud
@@ -99,6 +105,14 @@ class SerialLine:
         return not self._in_flight
 
 
+def _check_line_options(byte_time_s: float, base_latency_s: float, tick_period_s: float) -> None:
+    for name, value in (("byte_time_s", byte_time_s), ("base_latency_s", base_latency_s)):
+        if not (math.isfinite(value) and value >= 0):
+            raise UsageError(f"{name} must be a finite number >= 0, got {value!r}")
+    if not (math.isfinite(tick_period_s) and tick_period_s > 0):
+        raise UsageError(f"tick_period_s must be a positive number, got {tick_period_s!r}")
+
+
 class VirtualBus:
     """A Core session and a base wired together in simulated time, starting at `start_s`."""
 
@@ -116,11 +130,7 @@ class VirtualBus:
         start_s: float = 0.0,
         lock: AbstractContextManager[Any] | None = None,
     ) -> None:
-        for name, value in (("byte_time_s", byte_time_s), ("base_latency_s", base_latency_s)):
-            if not (math.isfinite(value) and value >= 0):
-                raise UsageError(f"{name} must be a finite number >= 0, got {value!r}")
-        if not (math.isfinite(tick_period_s) and tick_period_s > 0):
-            raise UsageError(f"tick_period_s must be a positive number, got {tick_period_s!r}")
+        _check_line_options(byte_time_s, base_latency_s, tick_period_s)
         if chunk_bytes < 0:
             raise UsageError(f"chunk_bytes must be >= 0, got {chunk_bytes}")
         self.core = core
@@ -215,3 +225,91 @@ class VirtualBus:
         if self._to_core is not None:
             data = self._to_core(data, when)
         self.to_core_line.send(data, when)
+
+
+class VirtualLink:
+    """The master's end of a UART to an in-process sans-IO base, in simulated time from `start_s`.
+
+    `write` puts bytes on the line to the base; `read(timeout)` advances the clock from event to
+    event (a byte arriving at the base, its answer arriving back, a base tick) until answer bytes
+    arrive or `timeout` has passed, and returns them. The base answers `base_latency_s` after the
+    bytes that caused the answer reached it and ticks every `tick_period_s`, as on VirtualBus.
+    Give the master `clock` and `sleep` (for example `check_base(link, options, clock=link.clock,
+    sleep=link.sleep)`): a master that read the host's clock would mix the two times.
+    Not thread-safe: one master drives it.
+    """
+
+    def __init__(
+        self,
+        base: SansIoBase,
+        *,
+        byte_time_s: float = DEFAULT_BYTE_TIME_S,
+        base_latency_s: float = DEFAULT_BASE_LATENCY_S,
+        tick_period_s: float = DEFAULT_TICK_PERIOD_S,
+        start_s: float = 0.0,
+        name: str = "virtual link",
+    ) -> None:
+        _check_line_options(byte_time_s, base_latency_s, tick_period_s)
+        self.base = base
+        self.base_latency_s = base_latency_s
+        self.tick_period_s = tick_period_s
+        self.to_base_line = SerialLine(byte_time_s)
+        self.to_master_line = SerialLine(byte_time_s)
+        self.now = start_s
+        self._start_s = start_s
+        self._ticks = 0
+        self._name = name
+        self._closed = False
+
+    @property
+    def name(self) -> str:
+        return self._name
+
+    def clock(self) -> float:
+        """The simulated time, s."""
+        return self.now
+
+    def sleep(self, seconds: float) -> None:
+        """Let `seconds` of simulated time pass (the base runs; what it sends waits to be read)."""
+        self._run_to(self.now + max(0.0, seconds), stop_at_answer=False)
+
+    def write(self, data: bytes) -> None:
+        if self._closed:
+            raise LinkError(f"{self._name} is closed")
+        self.to_base_line.send(bytes(data), self.now)
+
+    def read(self, timeout: float) -> bytes:
+        if self._closed:
+            raise LinkError(f"{self._name} is closed")
+        arrived = self.to_master_line.take(self.now)
+        if arrived:
+            return arrived
+        self._run_to(self.now + max(0.0, timeout), stop_at_answer=True)
+        return self.to_master_line.take(self.now)
+
+    def close(self) -> None:
+        self._closed = True
+
+    def _next_tick(self) -> float:
+        return self._start_s + (self._ticks + 1) * self.tick_period_s
+
+    def _run_to(self, end: float, *, stop_at_answer: bool) -> None:
+        while True:
+            candidates = [self._next_tick()]
+            for value in (self.to_base_line.next_arrival(), self.to_master_line.next_arrival()):
+                if value is not None:
+                    candidates.append(value)
+            moment = max(self.now, min(candidates))
+            if moment > end:
+                self.now = end
+                return
+            self.now = moment
+            data = self.to_base_line.take(moment)
+            if data:
+                self.to_master_line.send(self.base.receive(data, moment), moment + self.base_latency_s)
+            if moment >= self._next_tick():
+                self._ticks += 1
+                self.to_master_line.send(self.base.tick(moment), moment + self.base_latency_s)
+            next_answer = self.to_master_line.next_arrival()
+            if stop_at_answer and next_answer is not None and next_answer <= moment:
+                return

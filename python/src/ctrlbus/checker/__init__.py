@@ -15,6 +15,7 @@ loop), `checks_*` (the checks), `report` (text, JSON, JUnit XML).
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 
 from ctrlbus.checker.checks_config import CHECKS as _CONFIG_CHECKS
@@ -71,13 +72,21 @@ assert [check.number for check in CHECKS] == list(range(1, len(CHECKS) + 1)), "c
 
 
 def check_base(
-    link: Link, options: CheckOptions, *, on_result: Callable[[CheckResult], None] | None = None
+    link: Link,
+    options: CheckOptions,
+    *,
+    on_result: Callable[[CheckResult], None] | None = None,
+    clock: Callable[[], float] = time.monotonic,
+    sleep: Callable[[float], None] = time.sleep,
 ) -> Report:
     """Run the checks selected by `options` against the base on `link`.
 
-    ProtocolTimeout if nothing at all answers; LinkError if the link fails before the first check.
+    `clock` and `sleep` are the checker's sense of time: the host's by default; a
+    `ctrlbus.vtime.VirtualLink`'s (`clock=link.clock, sleep=link.sleep`) for a base in simulated
+    time. ProtocolTimeout if nothing at all answers; LinkError if the link fails before the first
+    check.
     """
-    prober = Prober(link, answer_limit_s=options.wait_s)
+    prober = Prober(link, answer_limit_s=options.wait_s, clock=clock, sleep=sleep)
     return run_checks(prober, CHECKS, options, on_result=on_result)
 
 

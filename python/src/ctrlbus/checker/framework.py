@@ -11,7 +11,6 @@ once the link is dead (no valid frame ever came back, or the base stopped answer
 from __future__ import annotations
 
 import contextlib
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
@@ -328,9 +327,9 @@ def _hello(prober: Prober) -> None:
     HELLO_BOOT_S: a reference base just powered on says nothing for about 1.9 s (reference §4).
     """
     connect = request_frame(ConnectBase())
-    began = time.monotonic()
+    began = prober.now()
     attempt = 0
-    while attempt < 2 or time.monotonic() - began < HELLO_BOOT_S:
+    while attempt < 2 or prober.now() - began < HELLO_BOOT_S:
         attempt += 1
         exchange = prober.exchange(connect, f"CONNECT_BASE (is a base there? attempt {attempt})")
         if exchange.frame is not None or prober.bytes_received:
@@ -344,7 +343,7 @@ def _hello(prober: Prober) -> None:
     limit_ms = prober.answer_limit_s * 1000
     raise ProtocolTimeout(
         f"no answer from {prober.link.name}: not one byte came back to CONNECT_BASE "
-        f"({attempt} attempts, {limit_ms:.0f} ms each, over {time.monotonic() - began:.1f} s); "
+        f"({attempt} attempts, {limit_ms:.0f} ms each, over {prober.now() - began:.1f} s); "
         "is the base running on this port, at this baud rate?"
     )
 
@@ -361,7 +360,7 @@ def run_checks(
     ProtocolTimeout if the base never answers at all; LinkError if the link fails before any
     check ran. Once the link is dead, the remaining checks are skipped with the reason.
     """
-    started = time.monotonic()
+    started = prober.now()
     report = Report(
         port=prober.link.name,
         options=options,
@@ -381,14 +380,14 @@ def run_checks(
         report.results.append(result)
         if on_result is not None:
             on_result(result)
-    report.duration_s = time.monotonic() - started
+    report.duration_s = prober.now() - started
     return report
 
 
 def _run_one(check: Check, prober: Prober, options: CheckOptions) -> tuple[CheckResult, str | None]:
     prober.start_transcript()
     context = CheckContext(prober, options)
-    began = time.monotonic()
+    began = prober.now()
     dead: str | None = None
     skipped: str | None = None
     try:
@@ -402,7 +401,7 @@ def _run_one(check: Check, prober: Prober, options: CheckOptions) -> tuple[Check
     except LinkError as exc:
         context.fail(f"the link failed: {exc}")
         dead = f"the link failed during check {check.number} ({exc})"
-    duration = time.monotonic() - began
+    duration = prober.now() - began
     evidence = prober.transcript
     if skipped is not None:
         result = CheckResult(check, Status.SKIP, skipped, list(context.findings), evidence, duration)

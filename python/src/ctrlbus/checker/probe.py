@@ -104,8 +104,9 @@ def describe_frame(frame: Frame) -> str:
 class Prober:
     """Send bytes to a base and read its answers, with bounded waits and a transcript.
 
-    `clock` and `sleep` are injectable for tests; by default they are real time, because the
-    checker judges real timing (latency, the motor watchdog).
+    `clock` and `sleep` are injectable (`ctrlbus.vtime.VirtualLink` gives both: the checker then
+    runs in simulated time, untouched by the host's load); by default they are real time,
+    because the checker judges real timing (latency, the motor watchdog).
     """
 
     def __init__(
@@ -114,10 +115,12 @@ class Prober:
         *,
         answer_limit_s: float,
         clock: Callable[[], float] = time.monotonic,
+        sleep: Callable[[float], None] = time.sleep,
     ) -> None:
         self.link = link
         self.answer_limit_s = answer_limit_s
         self._clock = clock
+        self._sleep = sleep
         self._decoder = StreamDecoder(timeout=HOST_INTERBYTE_TIMEOUT_S)
         self._queue: deque[Received] = deque()
         self.transcript: list[Evidence] = []
@@ -165,7 +168,7 @@ class Prober:
         except LinkError:
             # pyserial reading a pty slave may once report readiness without data (a kernel
             # race when the other side writes); a port that is really gone fails again.
-            time.sleep(SPURIOUS_READ_PAUSE_S)
+            self._sleep(SPURIOUS_READ_PAUSE_S)
             return self.link.read(0.0)
 
     def _pump(self, timeout: float) -> bool:
