@@ -57,14 +57,45 @@ lint: setup
 	@$(VENV)/bin/ruff check --config python/pyproject.toml bench && $(VENV)/bin/ruff format --config python/pyproject.toml --check bench
 	@cd bench && MYPYPATH=../python/src ../$(VENV)/bin/mypy --config-file ../python/pyproject.toml --explicit-package-bases .
 
-# Python tests run against the C builds too (host base, firmware), so build those first. The whole
-# suite runs twice: on the default interpreter and on Python 3.10, the oldest supported
-# (PY310_PYTEST_ARGS='-m "not browser"', for instance, trims the second run).
+# Python tests run against the C builds too (host base, firmware), so build those first. The suite
+# runs on both cores (pytest-xdist) with the CI Hypothesis profile, then again on Python 3.10, the
+# oldest supported, but only the tests marked py310 (python/tests/conftest.py: imports, packaging,
+# the CLI, the typed core; README.md says why that covers 3.10). PY310_PYTEST_ARGS adds options.
+PYTEST_JOBS ?= auto
 PY310_PYTEST_ARGS ?=
 py-test: c-build firmware ports
-	@cd python && ../$(VENV)/bin/pytest -q
-	@echo "py-test: again on $$($(VENV310)/bin/python --version)"
-	@cd python && ../$(VENV310)/bin/pytest -q -p no:cacheprovider $(PY310_PYTEST_ARGS)
+	@cd python && HYPOTHESIS_PROFILE=ci ../$(VENV)/bin/pytest -q -n $(PYTEST_JOBS)
+	@echo "py-test: the py310 tests again on $$($(VENV310)/bin/python --version)"
+	@cd python && HYPOTHESIS_PROFILE=ci ../$(VENV310)/bin/pytest -q -n $(PYTEST_JOBS) -p no:cacheprovider \
+	  -m py310 $(PY310_PYTEST_ARGS)
+
+# The contributor's inner loop: lint, then every test not marked slow or external, on both cores
+# with the dev Hypothesis profile (few examples). Needs only `scripts/setup.sh full` once.
+.PHONY: check test-stress
+check: setup
+	@$(MAKE) --no-print-directory lint
+	@cd python && HYPOTHESIS_PROFILE=dev ../$(VENV)/bin/pytest -q -n $(PYTEST_JOBS) -m "not slow and not external"
+
+# The proof that no test depends on the host's scheduling: the emulator, checker, firmware and CLI
+# tests STRESS_RUNS times in a row while stress-ng keeps both cores busy; prints the count of
+# failed runs and the time. 0 failed runs is the bar.
+STRESS_RUNS ?= 20
+STRESS_TESTS ?= tests/test_mcu_ports.py tests/test_firmware.py tests/test_minimal_base.py \
+  tests/test_served_bases.py tests/test_hostile_link.py tests/test_posix_base.py tests/test_checker.py \
+  tests/test_quirks.py tests/test_vtime.py tests/test_cli.py tests/test_cli_face.py tests/test_core_cli.py \
+  tests/test_sim_cli.py
+test-stress: c-build firmware ports
+	@command -v stress-ng >/dev/null || { echo "test-stress: stress-ng is missing (scripts/setup.sh full)"; exit 1; }
+	@mkdir -p $(BUILD)/stress; stress-ng --cpu 2 --quiet & stress=$$!; \
+	  trap 'kill $$stress 2>/dev/null' EXIT; started=$$(date +%s); failed=0; \
+	  for run in $$(seq 1 $(STRESS_RUNS)); do \
+	    log=$(BUILD)/stress/run-$$run.log; \
+	    if (cd python && HYPOTHESIS_PROFILE=ci ../$(VENV)/bin/pytest -q -n $(PYTEST_JOBS) -p no:cacheprovider \
+	        $(STRESS_TESTS)) >$$log 2>&1; then result=passed; else result=FAILED; failed=$$((failed + 1)); fi; \
+	    echo "test-stress: run $$run of $(STRESS_RUNS) $$result ($$(tail -1 $$log)) after $$(( $$(date +%s) - started )) s"; \
+	  done; \
+	  echo "test-stress: $$failed of $(STRESS_RUNS) runs failed under stress-ng --cpu 2 in $$(( $$(date +%s) - started )) s (logs: $(BUILD)/stress)"; \
+	  test $$failed = 0
 
 test: c-test c-test-config-off c-test-asan lint py-test fuzz-smoke pictures
 	@echo "make test: all suites passed"

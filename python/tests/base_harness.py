@@ -8,18 +8,21 @@ Not a test module itself; test_posix_base.py and test_firmware.py import it.
 from __future__ import annotations
 
 import collections
+import contextlib
+import fcntl
 import os
 import select
 import signal
 import socket
 import subprocess
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
 from ctrlbus.frame import Frame, StreamDecoder, encode
 
 REPO = Path(__file__).resolve().parents[2]
+LOCKS = REPO / "build" / "test-locks"
 ANSWER_LIMIT_S = 10.0  # generous: QEMU on a busy 2-core machine can be slow to start answering
 
 
@@ -183,3 +186,17 @@ def connect_tcp(host: str, port: int, limit_s: float = ANSWER_LIMIT_S) -> socket
     sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
     sock.settimeout(None)
     return sock
+
+
+@contextlib.contextmanager
+def exclusive(name: str) -> Iterator[None]:
+    """Hold the lock `name` across processes while the block runs: pytest-xdist's workers (and
+    a second pytest) that build into the same directory (make -C c/firmware, c/ports, ...) take
+    turns instead of racing. The lock is the kernel's (flock): a killed holder releases it."""
+    LOCKS.mkdir(parents=True, exist_ok=True)
+    with open(LOCKS / f"{name}.lock", "w") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)

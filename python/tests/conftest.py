@@ -1,6 +1,16 @@
 # SPDX-License-Identifier: MIT
-"""Shared test settings: one hypothesis profile so the property tests stay fast on 2 cores, and the
-markers that set apart the tests needing more than the Python package.
+"""Shared test settings: the Hypothesis profiles, and the markers that set apart the tests needing
+more than the Python package, the slow ones and those that run on Python 3.10 too.
+
+Hypothesis profiles, chosen by HYPOTHESIS_PROFILE, else by CI=true (`ci`), else `dev`:
+
+- `ci` (make test, make test-stress): the example counts the tests ask for (@settings), 60 where
+  they ask for none;
+- `dev` (make check, a plain `pytest`): a tenth of those counts, at least 10 each: the inner loop.
+
+`slow` marks soaks and long end-to-end runs (SLOW_MODULES below, or @pytest.mark.slow): `make
+check` leaves them out. `py310` marks the tests that `make test` runs again on Python 3.10
+(PY310_MODULES below; README.md says why those).
 
 `make test` runs every test; a test whose tool is missing fails there (make test installs the
 tools). A contributor with only the package and its test tools runs the rest with
@@ -14,18 +24,18 @@ new test in those modules is marked without anyone remembering to.
 
 from __future__ import annotations
 
+import os
+
 import pytest
 from hypothesis import HealthCheck, settings
 
-# Moderate example counts and no per-example deadline: the machine is small and shared, and a
-# deadline would turn a slow moment into a flaky failure. Tests that need more examples say so.
-settings.register_profile(
-    "ctrlbus",
-    max_examples=60,
-    deadline=None,
-    suppress_health_check=[HealthCheck.too_slow],
-)
-settings.load_profile("ctrlbus")
+# No per-example deadline: the machine is small and shared, and a deadline would turn a slow moment
+# into a flaky failure.
+settings.register_profile("ci", max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+settings.register_profile("dev", parent=settings.get_profile("ci"), max_examples=10)
+PROFILE = os.environ.get("HYPOTHESIS_PROFILE") or ("ci" if os.environ.get("CI") == "true" else "dev")
+settings.load_profile(PROFILE)
+DEV_SHARE = 10  # under `dev`, a test's own example count is divided by this (at least 10 remain)
 
 # marker -> what the tests need besides the package, its `web` extra and the `test` group.
 EXTERNAL_MARKERS = {
@@ -62,11 +72,24 @@ FIXTURE_MARKERS = {
     "posix_base": ("c_build",),
 }
 
+# The modules whose tests run again on Python 3.10 (a name ends the prefix: test_core matches
+# test_core_cli and the test_core_* modules of core/): every module imported, the packaging and
+# the CLI, the typed core and what uses compat.StrEnum (frames, faults, quirks, the checker).
+PY310_MODULES = (
+    "test_imports", "test_package_face", "test_packaging", "test_setup", "test_cli", "test_sim_cli",
+    "test_core", "test_frame", "test_messages", "test_faults", "test_quirks", "test_checker",
+)  # fmt: skip
+
+# Soaks and long end-to-end runs (a minute or more of a core on this machine).
+SLOW_MODULES: tuple[str, ...] = ()
+
 
 def pytest_configure(config: pytest.Config) -> None:
     for name, needs in EXTERNAL_MARKERS.items():
         config.addinivalue_line("markers", f"{name}: needs {needs}")
     config.addinivalue_line("markers", "external: needs more than the Python package (any marker above)")
+    config.addinivalue_line("markers", "slow: a soak or long end-to-end run: make check leaves it out")
+    config.addinivalue_line("markers", "py310: runs on Python 3.10 too (PY310_MODULES)")
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
@@ -80,3 +103,19 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             item.add_marker(name)
         if names:
             item.add_marker("external")
+        if module.startswith(PY310_MODULES):
+            item.add_marker("py310")
+        if module in SLOW_MODULES:
+            item.add_marker("slow")
+        if PROFILE == "dev":
+            _fewer_examples(item)
+
+
+def _fewer_examples(item: pytest.Item) -> None:
+    """Under `dev`, a property test's own example count divided by DEV_SHARE (at least 10).
+    Hypothesis keeps a test's @settings on the test function; `ci` leaves them as written."""
+    test = getattr(item, "obj", None)
+    own = getattr(test, "_hypothesis_internal_use_settings", None)
+    if own is not None and getattr(test, "is_hypothesis_test", False):
+        fewer = max(10, own.max_examples // DEV_SHARE)
+        test._hypothesis_internal_use_settings = settings(own, max_examples=fewer)  # type: ignore[union-attr]

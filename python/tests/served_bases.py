@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
-from base_harness import REPO, FramePeer, Process, connect_tcp, connect_unix
+from base_harness import REPO, FramePeer, Process, connect_tcp, connect_unix, exclusive
 from test_firmware import FIRMWARE_BUILD, FIRMWARE_SOURCES, qemu_command
 
 POSIX_BASE = REPO / "build" / "c" / "examples" / "posix_base" / "posix_base"
@@ -74,7 +74,8 @@ def build_firmware() -> None:
         if shutil.which(tool) is None:
             pytest.fail(f"{tool} is missing: scripts/setup.sh installs it")
     command = ["make", "-C", str(FIRMWARE_SOURCES), f"O={FIRMWARE_BUILD}"]
-    build = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    with exclusive("firmware-build"):
+        build = subprocess.run(command, capture_output=True, text=True, timeout=600)
     if build.returncode != 0 or not FIRMWARE_IMAGE.exists():
         pytest.fail(f"firmware build failed:\n{build.stdout}\n{build.stderr}")
 

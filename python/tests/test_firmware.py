@@ -25,7 +25,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from base_harness import REPO, FramePeer, Process, connect_unix
+from base_harness import REPO, FramePeer, Process, connect_unix, exclusive
 
 from ctrlbus.frame import Frame, encode
 
@@ -66,12 +66,13 @@ def firmware_images() -> Path:
     for tool in ("arm-none-eabi-gcc", "qemu-system-arm"):
         if shutil.which(tool) is None:
             pytest.fail(f"{tool} is missing: scripts/setup.sh installs it")
-    build = subprocess.run(
-        ["make", "-C", str(FIRMWARE_SOURCES), f"O={FIRMWARE_BUILD}"],
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
+    with exclusive("firmware-build"):
+        build = subprocess.run(
+            ["make", "-C", str(FIRMWARE_SOURCES), f"O={FIRMWARE_BUILD}"],
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
     if build.returncode != 0:
         pytest.fail(f"firmware build failed:\n{build.stdout}\n{build.stderr}")
     return FIRMWARE_BUILD

@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import TypeVar
 
 import pytest
-from base_harness import REPO, Process
+from base_harness import REPO, Process, exclusive
 from test_dashboard_browser import free_port
 from test_firmware import connect_tcp_when_listening
 from test_minimal_base import assert_checker_passes
@@ -70,9 +70,10 @@ def port_images() -> Path:
     for tool in TOOLS:
         if shutil.which(tool) is None:
             pytest.fail(f"{tool} is missing: scripts/setup.sh installs it")
-    build = subprocess.run(
-        ["make", "-C", str(PORTS_SOURCES), f"O={PORTS_BUILD}"], capture_output=True, text=True, timeout=600
-    )
+    with exclusive("ports-build"):
+        build = subprocess.run(
+            ["make", "-C", str(PORTS_SOURCES), f"O={PORTS_BUILD}"], capture_output=True, text=True, timeout=600
+        )
     if build.returncode != 0:
         pytest.fail(f"port build failed:\n{build.stdout}\n{build.stderr}")
     return PORTS_BUILD
@@ -181,12 +182,13 @@ def uno_chip_stack(port_images: Path, tmp_path_factory: pytest.TempPathFactory) 
     """The checker passes on the Uno's chip image (receive interrupt, idle sleep: what QEMU cannot
     run) under simavr, with USART0 on a pty; returns how deep its stack went meanwhile (B), read
     from simavr's dump of the data memory when it stops."""
-    build = subprocess.run(
-        ["make", "-C", str(PORTS_SOURCES), f"O={PORTS_BUILD}", "simavr"],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    with exclusive("ports-build"):
+        build = subprocess.run(
+            ["make", "-C", str(PORTS_SOURCES), f"O={PORTS_BUILD}", "simavr"],
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
     if build.returncode != 0:
         pytest.fail(
             f"simavr bench build failed (scripts/setup.sh installs libsimavr-dev):\n"
