@@ -5,6 +5,7 @@ a copy that drifts would not show in any behaviour test until a base disagreed).
 
 from __future__ import annotations
 
+import functools
 import io
 import re
 import tokenize
@@ -44,8 +45,20 @@ LISTED = [
 ]
 
 
-def sources() -> list[Path]:
-    return sorted(SRC.rglob("*.py"))
+# The sources are read, and tokenized, once per session: every test here searches all of them.
+@functools.cache
+def sources() -> tuple[Path, ...]:
+    return tuple(sorted(SRC.rglob("*.py")))
+
+
+@functools.cache
+def text_of(path: Path) -> str:
+    return path.read_text(encoding="utf-8")
+
+
+@functools.cache
+def lines_of(path: Path) -> tuple[str, ...]:
+    return tuple(text_of(path).splitlines())
 
 
 def definitions(name: str) -> list[str]:
@@ -54,14 +67,15 @@ def definitions(name: str) -> list[str]:
     defined = re.compile(rf"^\s*(?:class|def)\s+{name}\b")
     found = []
     for path in sources():
-        for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
+        for number, line in enumerate(lines_of(path), start=1):
             if assigned.match(line) or defined.match(line):
                 found.append(f"{path.relative_to(SRC)}:{number}")
     return found
 
 
-def code_tokens(path: Path) -> list[tokenize.TokenInfo]:
-    return list(tokenize.generate_tokens(io.StringIO(path.read_text(encoding="utf-8")).readline))
+@functools.cache
+def code_tokens(path: Path) -> tuple[tokenize.TokenInfo, ...]:
+    return tuple(tokenize.generate_tokens(io.StringIO(text_of(path)).readline))
 
 
 @pytest.mark.parametrize("name", LISTED)
@@ -118,7 +132,7 @@ def test_no_size_table_outside_constants() -> None:
     copies = [
         f"{path.relative_to(SRC)}"
         for path in sources()
-        if path != HOME and re.search(r"\"CONNECT_BASE\":\s*\d", path.read_text(encoding="utf-8"))
+        if path != HOME and re.search(r"\"CONNECT_BASE\":\s*\d", text_of(path))
     ]
     assert copies == []
 
