@@ -294,11 +294,17 @@ class VirtualLink:
         return self._start_s + (self._ticks + 1) * self.tick_period_s
 
     def _run_to(self, end: float, *, stop_at_answer: bool) -> None:
+        """Advance to `end`, or (stop_at_answer) to the moment answer bytes have arrived."""
         while True:
+            answer_at = self.to_master_line.next_arrival()
+            if stop_at_answer and answer_at is not None and answer_at <= self.now:
+                return
             candidates = [self._next_tick()]
-            for value in (self.to_base_line.next_arrival(), self.to_master_line.next_arrival()):
-                if value is not None:
-                    candidates.append(value)
+            base_at = self.to_base_line.next_arrival()
+            if base_at is not None:
+                candidates.append(base_at)
+            if stop_at_answer and answer_at is not None:
+                candidates.append(answer_at)
             moment = max(self.now, min(candidates))
             if moment > end:
                 self.now = end
@@ -310,6 +316,3 @@ class VirtualLink:
             if moment >= self._next_tick():
                 self._ticks += 1
                 self.to_master_line.send(self.base.tick(moment), moment + self.base_latency_s)
-            next_answer = self.to_master_line.next_arrival()
-            if stop_at_answer and next_answer is not None and next_answer <= moment:
-                return

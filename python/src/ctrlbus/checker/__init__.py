@@ -86,7 +86,13 @@ def check_base(
     time. ProtocolTimeout if nothing at all answers; LinkError if the link fails before the first
     check.
     """
-    prober = Prober(link, answer_limit_s=options.wait_s, clock=clock, sleep=sleep)
+    prober = Prober(
+        link,
+        answer_limit_s=options.wait_s,
+        clock=clock,
+        sleep=sleep,
+        interbyte_timeout_s=options.interbyte_timeout_s,
+    )
     return run_checks(prober, CHECKS, options, on_result=on_result)
 
 

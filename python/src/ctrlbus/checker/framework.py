@@ -16,7 +16,15 @@ from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from typing import NoReturn, TypeVar
 
-from ctrlbus.checker.probe import FLUSHING_SYNC, Evidence, Exchange, NoAnswer, Prober, describe_frame
+from ctrlbus.checker.probe import (
+    FLUSHING_SYNC,
+    HOST_INTERBYTE_TIMEOUT_S,
+    Evidence,
+    Exchange,
+    NoAnswer,
+    Prober,
+    describe_frame,
+)
 from ctrlbus.compat import StrEnum
 from ctrlbus.constants import Profile
 from ctrlbus.errors import LinkError, MessageError, ProtocolTimeout, UsageError
@@ -114,6 +122,9 @@ class CheckOptions:
       require the answer sizes of that base profile (§6.2).
     - `latency_count`: requests timed by the latency check.
     - `only`: check numbers to run (None: all).
+    - `interbyte_timeout_s`: the inter-byte timeout of the checker's own decoder, which reads the
+      answers (default 100 ms, a host program's, docs/protocol.md §7.6); longer for a base in an
+      emulator, whose answers leave a byte at a time and pause whenever the host is busy.
     """
 
     timeout_s: float = DEFAULT_TIMEOUT_S
@@ -121,6 +132,7 @@ class CheckOptions:
     profile: str = "any"
     latency_count: int = DEFAULT_LATENCY_COUNT
     only: frozenset[int] | None = None
+    interbyte_timeout_s: float = HOST_INTERBYTE_TIMEOUT_S
 
     def __post_init__(self) -> None:
         if not (0 < self.timeout_s <= 60):
@@ -131,6 +143,10 @@ class CheckOptions:
             raise UsageError(f"unknown profile {self.profile!r} (choose {', '.join(PROFILES)})")
         if not (1 <= self.latency_count <= 100_000):
             raise UsageError(f"latency count must be 1..100000, got {self.latency_count}")
+        if not (0 < self.interbyte_timeout_s <= 60):
+            raise UsageError(
+                f"inter-byte timeout must be more than 0 and at most 60 s, got {self.interbyte_timeout_s:g} s"
+            )
 
     @property
     def wait_s(self) -> float:

@@ -116,12 +116,13 @@ class Prober:
         answer_limit_s: float,
         clock: Callable[[], float] = time.monotonic,
         sleep: Callable[[float], None] = time.sleep,
+        interbyte_timeout_s: float = HOST_INTERBYTE_TIMEOUT_S,
     ) -> None:
         self.link = link
         self.answer_limit_s = answer_limit_s
         self._clock = clock
         self._sleep = sleep
-        self._decoder = StreamDecoder(timeout=HOST_INTERBYTE_TIMEOUT_S)
+        self._decoder = StreamDecoder(timeout=interbyte_timeout_s)
         self._queue: deque[Received] = deque()
         self.transcript: list[Evidence] = []
         self.unsolicited: list[Received] = []  # what drain() took since the transcript started

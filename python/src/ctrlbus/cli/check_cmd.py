@@ -2,7 +2,8 @@
 """`ctrlbus check`: the conformance checker, run against a base on a port.
 
     ctrlbus check --port URL [--baud N] [--json FILE] [--junit FILE] [--only N,M]
-                  [--timeout-ms N] [--profile any|reference|sdk2020] [--latency-count N] [-v]
+                  [--timeout-ms N] [--profile any|reference|sdk2020] [--latency-count N]
+                  [--interbyte-timeout-ms N] [-v]
     ctrlbus check --list
 
 Prints a line per check as it finishes, then the details of failures and warnings and the totals.
@@ -30,6 +31,7 @@ from ctrlbus.checker import (
     render_summary,
 )
 from ctrlbus.checker.framework import DEFAULT_LATENCY_COUNT, DEFAULT_TIMEOUT_S
+from ctrlbus.checker.probe import HOST_INTERBYTE_TIMEOUT_S
 from ctrlbus.cli.common import add_baud_argument, add_port_argument, write_output
 from ctrlbus.errors import UsageError
 from ctrlbus.ports import open_link
@@ -87,6 +89,13 @@ def register(subparsers: Any) -> None:
         metavar="N",
         help=f"requests timed by the latency check (default {DEFAULT_LATENCY_COUNT})",
     )
+    parser.add_argument(
+        "--interbyte-timeout-ms",
+        default=str(round(HOST_INTERBYTE_TIMEOUT_S * 1000)),
+        metavar="N",
+        help=f"the inter-byte timeout of the checker's decoder of the answers (default "
+        f"{HOST_INTERBYTE_TIMEOUT_S * 1000:.0f}, a host program's); longer for a base in an emulator",
+    )
     parser.add_argument("--list", action="store_true", help="list the checks and exit")
     parser.add_argument(
         "-v", "--verbose", action="store_true", help="show the evidence of every check, not only failures"
@@ -137,6 +146,7 @@ def options_from_args(args: argparse.Namespace) -> CheckOptions:
         profile=args.profile,
         latency_count=_integer("--latency-count", args.latency_count),
         only=None if args.only is None else parse_selection(args.only),
+        interbyte_timeout_s=_positive_number("--interbyte-timeout-ms", args.interbyte_timeout_ms) / 1000.0,
     )
 
 
