@@ -33,31 +33,49 @@ FIRMWARE_SOURCES = REPO / "c" / "firmware"
 FIRMWARE_BUILD = REPO / "build" / "firmware"
 
 
-def qemu_command(kernel: Path, uart_socket: Path) -> list[str]:
-    """QEMU with the firmware and UART0 on a Unix socket it listens on (no display, no monitor)."""
-    return [
-        "qemu-system-arm",
-        "-M", "mps2-an385",
-        "-display", "none",
-        "-monitor", "none",
-        "-nodefaults",
-        "-kernel", str(kernel),
-        "-chardev", f"socket,id=uart0,path={uart_socket},server=on,wait=off",
-        "-serial", "chardev:uart0",
-    ]  # fmt: skip
+# board: the QEMU program and machine, and how an image is loaded (the image's path follows)
+QEMU_BOARDS = {
+    "mps2-an385": ["qemu-system-arm", "-M", "mps2-an385", "-kernel"],
+    "uno": ["qemu-system-avr", "-M", "uno", "-bios"],
+    "microbit": ["qemu-system-arm", "-M", "microbit", "-kernel"],
+    "netduinoplus2": ["qemu-system-arm", "-M", "netduinoplus2", "-kernel"],
+    "sifive_e": ["qemu-system-riscv32", "-M", "sifive_e", "-kernel"],
+}
+# What `ctrlbus check` is given against an emulated MCU: QEMU answers a byte at a time whenever
+# the host runs it, so the checker's own inter-byte timeout is the images' (500 ms, c/ports/README.md)
+# and the request timeout its answers are judged against twice that. Real-time smoke runs; the
+# checker's verdicts themselves are tested in simulated time (test_checker.py).
+EMULATOR_CHECKER_ARGS = ("--timeout-ms", "1000", "--interbyte-timeout-ms", "500")
 
 
-def qemu_command_tcp(kernel: Path, port: int) -> list[str]:
-    """The same board with UART0 on a TCP server at 127.0.0.1:port, for pyserial's socket:// URLs.
+def qemu_command(
+    image: Path,
+    uart_socket: Path | None = None,
+    *,
+    board: str = "mps2-an385",
+    tcp_port: int | None = None,
+    monitor: Path | None = None,
+) -> list[str]:
+    """QEMU running `image` on `board` (no display), with its first UART on a Unix socket or on a
+    TCP server at 127.0.0.1:tcp_port (pyserial's socket:// URLs), both listened on by QEMU, and
+    its monitor on a Unix socket if `monitor` is given. The one place a QEMU command line is made.
 
     nodelay=on: without it QEMU's byte-by-byte writes meet Nagle's algorithm and delayed ACKs,
     and every answer seems to take 40 ms.
     """
-    command = qemu_command(kernel, Path("unused"))
-    command[command.index("-chardev") + 1] = (
-        f"socket,id=uart0,host=127.0.0.1,port={port},server=on,wait=off,nodelay=on"
-    )
-    return command
+    if tcp_port is not None:
+        uart = f"socket,id=uart0,host=127.0.0.1,port={tcp_port},server=on,wait=off,nodelay=on"
+    else:
+        assert uart_socket is not None, "a UART socket path or a TCP port"
+        uart = f"socket,id=uart0,path={uart_socket},server=on,wait=off"
+    return [
+        *QEMU_BOARDS[board], str(image),
+        "-display", "none",
+        "-monitor", "none" if monitor is None else f"unix:{monitor},server=on,wait=off",
+        "-nodefaults",
+        "-chardev", uart,
+        "-serial", "chardev:uart0",
+    ]  # fmt: skip
 
 
 @pytest.fixture(scope="module")
@@ -233,13 +251,13 @@ def test_conformance_checker_passes_against_the_firmware(
     with socket.socket() as probe:  # a free port; QEMU binds it right after
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
-    qemu = Process(qemu_command_tcp(firmware_images / image, port), tmp_path / "qemu.log", False)
+    qemu = Process(qemu_command(firmware_images / image, tcp_port=port), tmp_path / "qemu.log", False)
     try:
         connect_tcp_when_listening(port, qemu)
         report = tmp_path / "report.json"
         result = subprocess.run(
             [sys.executable, "-m", "ctrlbus", "check", "--port", f"socket://127.0.0.1:{port}",
-             "--profile", profile, "--json", str(report)],
+             "--profile", profile, "--json", str(report), *EMULATOR_CHECKER_ARGS],
             capture_output=True, text=True, timeout=300,
         )  # fmt: skip
         assert result.returncode == 0, f"{result.stdout}\n{result.stderr}\n{qemu.describe()}"

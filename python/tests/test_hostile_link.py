@@ -4,10 +4,10 @@ TCP and the QEMU firmware over its UART, each started as its users start it, bla
 
 Each category of malformed input is sent, the base's answers to it are checked where
 docs/protocol.md §8 says what they are, and then the line falls silent for longer than the
-base's inter-byte timeout (100 ms for all three) and a valid CONNECT_BASE and GET_BASE_STATUS
-must be answered correctly: nothing the link did leaves the base deaf, confused or stuck. One
-base process serves every category (and every category uses the same connection), so a
-category that left state behind would show in the next one's recovery check.
+base's inter-byte timeout (100 ms for the host bases, 500 ms for the firmware) and a valid
+CONNECT_BASE and GET_BASE_STATUS must be answered correctly: nothing the link did leaves the base
+deaf, confused or stuck. One base process serves every category (and every category uses the same
+connection), so a category that left state behind would show in the next one's recovery check.
 
 LEN = 0: the reference spec (control-bus.md) defines the frame but no answer; our bases answer it
 ERROR 0x8001 as docs/protocol.md §3.3 says, and that is what is checked here.
@@ -31,8 +31,8 @@ ERR_GARBAGE, ERR_OVERSIZE, ERR_CHECKSUM = 0x0010, 0x0020, 0x0040
 ERR_FORMAT = 0x8001
 CONNECT_BASE_V1 = bytes((0x10, 0x01))
 GET_BASE_STATUS = bytes((0x30,))
-SILENCE_S = 0.25  # longer than every base's inter-byte timeout (100 ms)
-QUIET_S = 0.2  # no answer for this long: the base has answered everything
+SILENCE_S = 0.6  # longer than every base's inter-byte timeout (100 ms; QEMU's firmware 500 ms)
+QUIET_S = 0.4  # no answer for this long: the base has answered everything (QEMU may pause 0.1 s)
 ANSWERS_LIMIT_S = 5.0
 
 # The request payloads of docs/protocol.md §5 with their right argument lengths (after the code).

@@ -31,27 +31,20 @@ from typing import TypeVar
 import pytest
 from base_harness import REPO, Process, exclusive
 from test_dashboard_browser import free_port
-from test_firmware import connect_tcp_when_listening
+from test_firmware import EMULATOR_CHECKER_ARGS, connect_tcp_when_listening, qemu_command
 from test_minimal_base import assert_checker_passes
 
 PORTS_SOURCES = REPO / "c" / "ports"
 PORTS_BUILD = REPO / "build" / "ports"
 
-# board: the QEMU command that runs an image (the image's path is appended)
-QEMU = {
-    "uno": ["qemu-system-avr", "-M", "uno", "-bios"],
-    "microbit": ["qemu-system-arm", "-M", "microbit", "-kernel"],
-    "netduinoplus2": ["qemu-system-arm", "-M", "netduinoplus2", "-kernel"],
-    "sifive_e": ["qemu-system-riscv32", "-M", "sifive_e", "-kernel"],
-}
+BOARDS = ("uno", "microbit", "netduinoplus2", "sifive_e")  # those of QEMU_BOARDS that c/ports builds
 TOOLS = ("avr-gcc", "arm-none-eabi-gcc", "riscv64-unknown-elf-gcc", "qemu-system-avr", "qemu-system-arm",
          "qemu-system-riscv32")  # fmt: skip
+# Every emulated board gets EMULATOR_CHECKER_ARGS (test_firmware.py). On the Uno it matters most:
 # QEMU's AVR USART holds one byte and takes the next from the host only after the firmware read
-# it, one turn of QEMU's event loop per byte: the checker's 4 KB oversize frame then takes 0.1 s
-# on an idle host and up to 1 s on a loaded one, where the checker waits 1 s (5 x its 200 ms
-# request timeout) for the next answer. On the wire at 115200 baud it would take 0.36 s anyway.
-# A 400 ms request timeout gives 2 s; the latency check still passes far below it (p99 ~15 ms).
-CHECKER_ARGS = {"uno": ("--timeout-ms", "400")}
+# it, one turn of QEMU's event loop per byte, so the checker's 4 KB oversize frame takes 0.1 s on
+# an idle host and up to 1 s on a loaded one (on the wire at 115200 baud, 0.36 s anyway); a 1 s
+# request timeout lets the checker wait 5 s for the next answer.
 # The Uno's 64-byte frame buffer (c/ports/Makefile) refuses the checker's SYNC and ECHO frames of
 # 258 to 512 bytes as oversize: warnings, and the only ones.
 CHECKER_WARNED = {"uno": frozenset({"sync", "echo"})}
@@ -72,7 +65,10 @@ def port_images() -> Path:
             pytest.fail(f"{tool} is missing: scripts/setup.sh installs it")
     with exclusive("ports-build"):
         build = subprocess.run(
-            ["make", "-C", str(PORTS_SOURCES), f"O={PORTS_BUILD}"], capture_output=True, text=True, timeout=600
+            ["make", "-C", str(PORTS_SOURCES), f"O={PORTS_BUILD}"],
+            capture_output=True,
+            text=True,
+            timeout=600,
         )
     if build.returncode != 0:
         pytest.fail(f"port build failed:\n{build.stdout}\n{build.stderr}")
@@ -80,7 +76,7 @@ def port_images() -> Path:
 
 
 # The Uno's minimal base runs in the uno_stack fixture (its checker run also measures the stack).
-RUNS = [(board, "minimal_base") for board in sorted(QEMU) if board != "uno"] + [
+RUNS = [(board, "minimal_base") for board in sorted(BOARDS) if board != "uno"] + [
     (board, "simbase") for board in ("microbit", "netduinoplus2", "sifive_e")
 ]
 
@@ -94,20 +90,13 @@ def run_checker(
     still runs, `measure(monitor socket, qemu)` if given, and return what it returns."""
     port = free_port()
     monitor = Path(tempfile.mkdtemp(prefix="ctrlbus-mon-")) / "monitor.sock"  # short: max 107 bytes
-    command = [
-        *QEMU[board], str(image),
-        "-display", "none", "-nodefaults",
-        "-monitor", f"unix:{monitor},server=on,wait=off",
-        # nodelay: QEMU writes byte by byte, which Nagle's algorithm would hold back
-        "-chardev", f"socket,id=uart,host=127.0.0.1,port={port},server=on,wait=off,nodelay=on",
-        "-serial", "chardev:uart",
-    ]  # fmt: skip
+    command = qemu_command(image, board=board, tcp_port=port, monitor=monitor)
     qemu = Process(command, tmp_path / "qemu.log", False)
     try:
         connect_tcp_when_listening(port, qemu)
         url, report = f"socket://127.0.0.1:{port}", tmp_path / "report.json"
         warned = CHECKER_WARNED.get(board, frozenset())
-        assert_checker_passes(url, report, qemu.describe, CHECKER_ARGS.get(board, ()), warned)
+        assert_checker_passes(url, report, qemu.describe, EMULATOR_CHECKER_ARGS, warned)
         assert_only_small_buffer_warnings(report)
         return None if measure is None else measure(monitor, qemu)
     finally:
@@ -205,7 +194,7 @@ def uno_chip_stack(port_images: Path, tmp_path_factory: pytest.TempPathFactory) 
         assert line.startswith("uart0 /dev/"), f"unexpected first line {line!r} from {simavr.describe()}"
         report = work / "report.json"
         assert_checker_passes(
-            line.split(" ", 1)[1], report, simavr.describe, CHECKER_ARGS["uno"], CHECKER_WARNED["uno"]
+            line.split(" ", 1)[1], report, simavr.describe, EMULATOR_CHECKER_ARGS, CHECKER_WARNED["uno"]
         )
         assert_only_small_buffer_warnings(report)
     finally:
