@@ -83,3 +83,13 @@ def test_virtual_link_sleep_runs_the_base_and_keeps_what_it_sent() -> None:
 def test_the_interbyte_timeout_option_is_checked(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["check", "--port", "loop://", "--interbyte-timeout-ms", "0"]) == 2
     assert "--interbyte-timeout-ms wants a number > 0" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("latency_s", [0.0, 0.05, 0.12, 0.15, 0.2])
+def test_the_watchdog_check_waits_for_the_copy_of_its_last_sync_from_a_slow_base(latency_s: float) -> None:
+    """A base answering 50-200 ms late (QEMU's AVR on a loaded host): the copy of the last SYNC
+    sent to keep the line busy must not be taken for the answer to the measuring request."""
+    link = VirtualLink(BaseStack(simulated_base(), BaseConfig()), base_latency_s=latency_s)
+    options = CheckOptions(only=frozenset({NUMBER_OF["watchdog"]}), timeout_s=1.0)
+    (result,) = check_base(link, options, clock=link.clock, sleep=link.sleep).results
+    assert result.status is Status.PASS, result.message

@@ -32,7 +32,7 @@ import pytest
 from base_harness import REPO, Process, exclusive
 from test_dashboard_browser import free_port
 from test_firmware import EMULATOR_CHECKER_ARGS, connect_tcp_when_listening, qemu_command
-from test_minimal_base import assert_checker_passes
+from test_minimal_base import TIMED, assert_checker_passes
 
 PORTS_SOURCES = REPO / "c" / "ports"
 PORTS_BUILD = REPO / "build" / "ports"
@@ -105,8 +105,10 @@ def run_checker(
 
 
 def assert_only_small_buffer_warnings(report: Path) -> None:
-    """Every warning of the checker's report is the small frame buffer's (CHECKER_WARNED)."""
-    findings = [f for check in json.loads(report.read_text())["checks"] for f in check["findings"]]
+    """Every warning of the checker's report is the small frame buffer's (CHECKER_WARNED), but
+    those of the checks that judge answer times (a slow moment of the host)."""
+    checks = json.loads(report.read_text())["checks"]
+    findings = [f for check in checks if check["name"] not in TIMED for f in check["findings"]]
     for finding in findings:
         assert finding["status"] != "warn" or SMALL_BUFFER_WARNING in finding["text"], finding["text"]
 

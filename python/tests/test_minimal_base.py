@@ -16,9 +16,14 @@ from pathlib import Path
 import pytest
 from base_harness import REPO, Process
 
+from ctrlbus.checker import CHECKS
+
 BINARY = REPO / "build" / "c" / "examples" / "minimal_base" / "minimal_base"
 # Every check but 21 (profile: skipped without --profile) passes against the minimal base.
 CHECKS_PASSING = 22
+# The checks that judge answer times (latency, the watchdog's timing, ...): in these real-time runs
+# over a pty or an emulator they may warn when the shared host was slow, and only they may.
+TIMED = frozenset(check.name for check in CHECKS if check.timed)
 
 
 def assert_checker_passes(
@@ -29,7 +34,7 @@ def assert_checker_passes(
     warned: frozenset[str] = frozenset(),
 ) -> dict[str, int]:
     """Run `ctrlbus check` against `port`; every check must pass, none warn but exactly the checks
-    named in `warned`. Returns the summary."""
+    named in `warned` (and a check of TIMED on a slow moment of the host). Returns the summary."""
     result = subprocess.run(
         [sys.executable, "-m", "ctrlbus", "check", "--port", port, "--json", str(report), *extra_args],
         capture_output=True,
@@ -40,8 +45,9 @@ def assert_checker_passes(
     run = json.loads(report.read_text())
     summary: dict[str, int] = run["summary"]
     warnings = {check["name"] for check in run["checks"] if check["status"] == "warn"}
-    assert summary["fail"] == 0 and warnings == warned, f"{summary}\n{result.stdout}"
-    assert summary["pass"] == CHECKS_PASSING - len(warned), f"{summary}\n{result.stdout}"
+    late = (warnings & TIMED) - warned
+    assert summary["fail"] == 0 and warnings - late == warned, f"{summary}\n{result.stdout}"
+    assert summary["pass"] == CHECKS_PASSING - len(warned) - len(late), f"{summary}\n{result.stdout}"
     return summary
 
 

@@ -74,7 +74,9 @@ def wheel_travel_mm(peer: FramePeer) -> tuple[int, int]:
 def turn_left_for(peer: FramePeer, omega_radps: float, real_s: float) -> tuple[float, float]:
     """A turn on the spot lasting `real_s`, with the watchdog fed by status requests (which do
     not read the deadreckon). Returns the deadreckon's dtheta and the turn the wheel travel
-    counters say (both in degrees)."""
+    counters say (both in degrees), over the same interval whatever the host's load: from rest
+    to rest again, the deadreckon summed until a reading shows no more turning, the counters read
+    only then."""
     ok_payload(peer.request(CTRL_BUS, set_velocity(0.0, 0.0)))
     left_before, right_before = wheel_travel_mm(peer)
     ok_payload(peer.request(CTRL_BUS, set_velocity(0.0, omega_radps)))
@@ -82,8 +84,16 @@ def turn_left_for(peer: FramePeer, omega_radps: float, real_s: float) -> tuple[f
     while time.monotonic() < end:
         ok_payload(peer.request(CTRL_BUS, GET_BASE_STATUS))
         time.sleep(0.01)
+    dtheta_q16 = 0
+    for _ in range(200):  # the robot brakes at its acceleration limit: a few readings
+        step = struct.unpack_from("<iii", ok_payload(peer.request(CTRL_BUS, set_velocity(0.0, 0.0))))[2]
+        dtheta_q16 += step
+        if step == 0:
+            break
+        time.sleep(0.01)
+    else:
+        raise AssertionError(f"the robot never came to rest: dtheta {dtheta_q16 / 65536:.1f} degrees")
     left_after, right_after = wheel_travel_mm(peer)
-    dtheta_q16 = struct.unpack_from("<iii", ok_payload(peer.request(CTRL_BUS, set_velocity(0.0, 0.0))))[2]
     wheel_turn_rad = ((right_after - right_before) - (left_after - left_before)) / WHEEL_TRACK_MM
     return dtheta_q16 / 65536, math.degrees(wheel_turn_rad)
 
@@ -100,8 +110,7 @@ def test_a_turn_of_more_than_half_a_turn_reads_the_same_in_c_and_python(served: 
         assert dtheta > 200.0, (
             f"{name} reported a turn of {dtheta:.1f} degrees (the wheels say {wheel_turn:.1f})"
         )
-        # The counters are whole millimetres, the Python robot's encoders slip a little, and the
-        # robot turns on for the moment between the two readings.
+        # The counters are whole millimetres and the Python robot's encoders slip a little.
         assert dtheta == pytest.approx(wheel_turn, rel=0.05, abs=15.0), (
             f"{name}: {dtheta:.1f} vs {wheel_turn:.1f}"
         )

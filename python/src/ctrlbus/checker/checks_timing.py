@@ -191,7 +191,9 @@ def _keep_talking_without_ctrl_bus(ctx: CheckContext, until: float) -> None:
             data, what = encode(Cmd.SYNC, b"\x55\xaa"), "SYNC (must not feed the watchdog)"
         else:
             data, what = encode(Cmd.ECHO, b"\x01\x02"), "ECHO (must not feed the watchdog)"
-        prober.exchange(data, what, limit_s=min(KEEPALIVE_S, max(0.0, until - prober.now())))
+        # Each copy is waited for (up to the answer limit), also past `until`: a slow base's late
+        # copy would otherwise be taken for the answer to the measuring request that follows.
+        prober.exchange(data, what)
         turn += 1
 
 
