@@ -14,8 +14,8 @@ import time
 from typing import Any
 
 import pytest
-import vectorfiles
-from vectorfiles import hex_bytes
+from support import vectorfiles
+from support.vectorfiles import hex_bytes
 
 from ctrlbus.base import (
     MAX_HEALTH_ERRORS,

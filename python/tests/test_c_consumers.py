@@ -19,7 +19,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from packaging_support import REPO, header_version, run, tool
+from support.packaging_support import REPO, header_version, run, tool
 
 CONSUMER = REPO / "c" / "tests" / "consumers"
 TOOLCHAIN_M0PLUS = REPO / "c" / "cmake" / "cortex-m0plus.cmake"

@@ -18,7 +18,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from base_harness import Process
+from support.base_harness import Process
 
 from ctrlbus.annotate import Annotator, FrameNote, Rejection, RejectReason, Role
 from ctrlbus.capture import CaptureReader, CaptureRecord, CaptureWriter, Direction, read_capture

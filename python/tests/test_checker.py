@@ -26,8 +26,8 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from base_harness import REPO, Process
-from broken_bases import (
+from support.base_harness import REPO, Process
+from support.broken_bases import (
     BROKEN_BASES,
     SEED,
     BrokenBase,

@@ -9,7 +9,7 @@ from __future__ import annotations
 import time
 
 import pytest
-from broken_bases import simulated_base
+from support.broken_bases import simulated_base
 
 from ctrlbus.base import BaseConfig, BaseStack
 from ctrlbus.checker import CHECKS, CheckOptions, Status, check_base

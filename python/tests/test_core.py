@@ -16,7 +16,7 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
-from core_fakes import FakeBase, describe
+from support.core_fakes import FakeBase, describe
 
 from ctrlbus import binconf
 from ctrlbus.base import BaseConfig, BaseRunner, BaseStack

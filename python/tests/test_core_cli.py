@@ -23,7 +23,7 @@ from contextlib import contextmanager, suppress
 from typing import Any
 
 import pytest
-from core_fakes import FakeBase
+from support.core_fakes import FakeBase
 
 from ctrlbus import binconf
 from ctrlbus.cli import main

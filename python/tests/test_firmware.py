@@ -25,57 +25,16 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from base_harness import REPO, FramePeer, Process, connect_unix, exclusive
+from support.base_harness import FramePeer, Process, connect_unix, exclusive
+from support.qemu import (
+    EMULATOR_CHECKER_ARGS,
+    FIRMWARE_BUILD,
+    FIRMWARE_SOURCES,
+    connect_tcp_when_listening,
+    qemu_command,
+)
 
 from ctrlbus.frame import Frame, encode
-
-FIRMWARE_SOURCES = REPO / "c" / "firmware"
-FIRMWARE_BUILD = REPO / "build" / "firmware"
-
-
-# board: the QEMU program and machine, and how an image is loaded (the image's path follows)
-QEMU_BOARDS = {
-    "mps2-an385": ["qemu-system-arm", "-M", "mps2-an385", "-kernel"],
-    "uno": ["qemu-system-avr", "-M", "uno", "-bios"],
-    "microbit": ["qemu-system-arm", "-M", "microbit", "-kernel"],
-    "netduinoplus2": ["qemu-system-arm", "-M", "netduinoplus2", "-kernel"],
-    "sifive_e": ["qemu-system-riscv32", "-M", "sifive_e", "-kernel"],
-}
-# What `ctrlbus check` is given against an emulated MCU: QEMU answers a byte at a time whenever
-# the host runs it, so the checker's own inter-byte timeout is the images' (500 ms, c/ports/README.md)
-# and the request timeout its answers are judged against twice that. Real-time smoke runs; the
-# checker's verdicts themselves are tested in simulated time (test_checker.py).
-EMULATOR_CHECKER_ARGS = ("--timeout-ms", "1000", "--interbyte-timeout-ms", "500")
-
-
-def qemu_command(
-    image: Path,
-    uart_socket: Path | None = None,
-    *,
-    board: str = "mps2-an385",
-    tcp_port: int | None = None,
-    monitor: Path | None = None,
-) -> list[str]:
-    """QEMU running `image` on `board` (no display), with its first UART on a Unix socket or on a
-    TCP server at 127.0.0.1:tcp_port (pyserial's socket:// URLs), both listened on by QEMU, and
-    its monitor on a Unix socket if `monitor` is given. The one place a QEMU command line is made.
-
-    nodelay=on: without it QEMU's byte-by-byte writes meet Nagle's algorithm and delayed ACKs,
-    and every answer seems to take 40 ms.
-    """
-    if tcp_port is not None:
-        uart = f"socket,id=uart0,host=127.0.0.1,port={tcp_port},server=on,wait=off,nodelay=on"
-    else:
-        assert uart_socket is not None, "a UART socket path or a TCP port"
-        uart = f"socket,id=uart0,path={uart_socket},server=on,wait=off"
-    return [
-        *QEMU_BOARDS[board], str(image),
-        "-display", "none",
-        "-monitor", "none" if monitor is None else f"unix:{monitor},server=on,wait=off",
-        "-nodefaults",
-        "-chardev", uart,
-        "-serial", "chardev:uart0",
-    ]  # fmt: skip
 
 
 @pytest.fixture(scope="module")
@@ -268,16 +227,3 @@ def test_conformance_checker_passes_against_the_firmware(
         assert by_name["profile"] == "pass", results["checks"]
     finally:
         qemu.stop()
-
-
-def connect_tcp_when_listening(port: int, qemu: Process, limit_s: float = 10.0) -> None:
-    """Wait until QEMU accepts on its UART port; the probe connection is closed again."""
-    deadline = time.monotonic() + limit_s
-    while True:
-        try:
-            socket.create_connection(("127.0.0.1", port), timeout=1).close()
-            return
-        except OSError:
-            if time.monotonic() > deadline or qemu.popen.poll() is not None:
-                raise AssertionError(f"QEMU never listened on {port}: {qemu.describe()}") from None
-            time.sleep(0.05)

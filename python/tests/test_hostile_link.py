@@ -21,8 +21,8 @@ import time
 from collections.abc import Iterator
 
 import pytest
-from base_harness import FramePeer
-from served_bases import BASE_NAMES, ServedBase, build_firmware, start_base
+from support.base_harness import FramePeer
+from support.served_bases import BASE_NAMES, ServedBase, build_firmware, start_base
 
 from ctrlbus.frame import Frame, encode
 

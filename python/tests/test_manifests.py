@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 import kconfiglib  # type: ignore[import-untyped]
-from packaging_support import REPO, header_version, run, tool
+from support.packaging_support import REPO, header_version, run, tool
 
 import ctrlbus
 

@@ -29,9 +29,9 @@ from pathlib import Path
 from typing import TypeVar
 
 import pytest
-from base_harness import REPO, Process, exclusive
+from support.base_harness import REPO, Process, exclusive
+from support.qemu import EMULATOR_CHECKER_ARGS, connect_tcp_when_listening, qemu_command
 from test_dashboard_browser import free_port
-from test_firmware import EMULATOR_CHECKER_ARGS, connect_tcp_when_listening, qemu_command
 from test_minimal_base import TIMED, assert_checker_passes
 
 PORTS_SOURCES = REPO / "c" / "ports"

@@ -14,7 +14,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
-from base_harness import REPO, Process
+from support.base_harness import REPO, Process
 
 from ctrlbus.checker import CHECKS
 

@@ -24,7 +24,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
-from base_harness import REPO, FramePeer, Process, connect_tcp
+from support.base_harness import REPO, FramePeer, Process, connect_tcp
 
 from ctrlbus import binconf
 from ctrlbus.frame import Frame, encode

@@ -25,8 +25,8 @@ import zipfile
 from pathlib import Path
 
 import pytest
-from base_harness import Process
-from packaging_support import REPO, header_version, run, tool
+from support.base_harness import Process
+from support.packaging_support import REPO, header_version, run, tool
 
 ARDUINO_STAND_IN = REPO / "c" / "tests" / "consumers" / "arduino"
 UNO_FLASH, UNO_RAM = 32256, 2048  # ATmega328P: flash less the boot loader, SRAM

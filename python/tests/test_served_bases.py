@@ -17,8 +17,8 @@ import time
 from collections.abc import Iterator
 
 import pytest
-from base_harness import FramePeer
-from served_bases import (
+from support.base_harness import FramePeer
+from support.served_bases import (
     BASE_NAMES,
     POSIX_BASE,
     SIM,

@@ -19,7 +19,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from base_harness import FramePeer, Process, connect_tcp
+from support.base_harness import FramePeer, Process, connect_tcp
 
 from ctrlbus import binconf
 from ctrlbus.base import DEFAULT_FRAME_TIMEOUT_S

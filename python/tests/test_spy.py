@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from base_harness import Process
+from support.base_harness import Process
 
 from ctrlbus.annotate import Annotation, Annotator, FrameNote, Rejection, RejectReason, Role
 from ctrlbus.base import BaseRunner

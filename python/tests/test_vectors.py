@@ -10,8 +10,8 @@ from __future__ import annotations
 from typing import Any
 
 import pytest
-import vectorfiles
-from vectorfiles import hex_bytes
+from support import vectorfiles
+from support.vectorfiles import hex_bytes
 
 from ctrlbus import messages as m
 from ctrlbus.errors import MessageFormatError, UnsupportedMessageError

@@ -7,7 +7,7 @@ from __future__ import annotations
 from typing import Any
 
 import pytest
-from core_fakes import FakeBase
+from support.core_fakes import FakeBase
 
 from ctrlbus.base import BaseConfig, BaseStack
 from ctrlbus.core import CoreConfig, CoreSession, PollRates

@@ -13,7 +13,7 @@ import shutil
 import subprocess
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 HEADER = REPO / "c" / "include" / "ctrlbus" / "ctrlbus.h"
 
 

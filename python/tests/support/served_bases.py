@@ -22,8 +22,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
-from base_harness import REPO, FramePeer, Process, connect_tcp, connect_unix, exclusive
-from test_firmware import FIRMWARE_BUILD, FIRMWARE_SOURCES, qemu_command
+
+from support.base_harness import REPO, FramePeer, Process, connect_tcp, connect_unix, exclusive
+from support.qemu import FIRMWARE_BUILD, FIRMWARE_SOURCES, qemu_command
 
 POSIX_BASE = REPO / "build" / "c" / "examples" / "posix_base" / "posix_base"
 FIRMWARE_IMAGE = FIRMWARE_BUILD / "ctrlbus-base.elf"

@@ -21,7 +21,7 @@ from pathlib import Path
 
 from ctrlbus.frame import Frame, StreamDecoder, encode
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 LOCKS = REPO / "build" / "test-locks"
 ANSWER_LIMIT_S = 10.0  # generous: QEMU on a busy 2-core machine can be slow to start answering
 
