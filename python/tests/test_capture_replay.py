@@ -249,6 +249,7 @@ def wait_for_bytes(path: Path, direction: Direction, size: int, limit_s: float =
         time.sleep(0.05)
 
 
+@pytest.mark.slow  # a soak or long end-to-end run: make check leaves it out
 @pytest.mark.parametrize("side", ["core", "base"])
 def test_capture_replay_capture_gives_the_same_bytes(
     noisy_capture: Path, tmp_path: Path, processes: list[Process], side: str
@@ -296,6 +297,7 @@ def test_capture_replay_capture_gives_the_same_bytes(
     assert f"{len(original)} bytes in" in capture.log()
 
 
+@pytest.mark.slow  # a soak or long end-to-end run: make check leaves it out
 def test_replay_the_core_side_into_the_simulated_base(
     clean_capture: Path, tmp_path: Path, processes: list[Process]
 ) -> None:

@@ -674,6 +674,7 @@ def simulated(world: World, blob: bytes | None = None) -> tuple[CoreSession, Bas
     return core, stack, bus
 
 
+@pytest.mark.slow  # a soak or long end-to-end run: make check leaves it out
 def test_sixty_seconds_against_the_simulated_base_pose_matches_its_odometry() -> None:
     world = World()
     start_odometry = world.odometry_pose

@@ -74,6 +74,7 @@ def write_hex(path: Path) -> None:
             index += 1
 
 
+@pytest.mark.slow  # a soak or long end-to-end run: make check leaves it out
 @pytest.mark.parametrize("write", [write_capture, write_binary, write_hex], ids=["capture", "binary", "hex"])
 def test_decode_holds_a_bounded_amount_of_memory(write: Callable[[Path], None], tmp_path: Path) -> None:
     path = tmp_path / "input"

@@ -476,6 +476,7 @@ def test_direction_names() -> None:
 # --- end to end: the soak harness (bench/soak.py) in virtual time ------------------------------
 
 
+@pytest.mark.slow  # a soak or long end-to-end run: make check leaves it out
 def test_through_bursts_and_cuts_the_base_keeps_its_limits_and_stops_in_time(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:

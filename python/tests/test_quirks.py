@@ -148,6 +148,7 @@ def test_core_tolerates_the_booting_base_and_its_transient_low_battery_error() -
     assert stats["disconnects"] == 0 and stats["lost_requests"] == 0
 
 
+@pytest.mark.slow  # a soak or long end-to-end run: make check leaves it out
 def test_core_soak_through_the_fault_injector_loses_no_request() -> None:
     """A small version of `bench/soak.py --quirks` (docs/reliability.md has the 100,000-exchange
     figures): every request is answered, superseded by its next period, or resent."""
