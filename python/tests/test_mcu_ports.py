@@ -30,9 +30,10 @@ from typing import TypeVar
 
 import pytest
 from support.base_harness import REPO, Process, exclusive
+from support.checker_runs import TIMED
 from support.qemu import EMULATOR_CHECKER_ARGS, connect_tcp_when_listening, qemu_command
 from test_dashboard_browser import free_port
-from test_minimal_base import TIMED, assert_checker_passes
+from test_minimal_base import assert_checker_passes
 
 PORTS_SOURCES = REPO / "c" / "ports"
 PORTS_BUILD = REPO / "build" / "ports"
