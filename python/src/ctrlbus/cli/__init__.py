@@ -28,6 +28,7 @@ __all__ = [
 # (an optional layer not installed) is skipped rather than breaking the whole command.
 SUBCOMMANDS: tuple[str, ...] = (
     "core",
+    "ros2",
     "sim",
     "check",
     "decode",

@@ -9,7 +9,6 @@ exit code 2, and the rest of ctrlbus never notices.
 
 from __future__ import annotations
 
-import importlib.util
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -47,10 +46,12 @@ class MissingExtraError(UsageError):
 
 def require_cyclonedds(what: str = "ctrlbus ros2") -> None:
     """Raise MissingExtraError naming the extra when cyclonedds cannot be imported."""
-    if importlib.util.find_spec("cyclonedds") is None:
+    try:
+        import cyclonedds  # noqa: F401
+    except ImportError:
         raise MissingExtraError(
             f"{what} needs the ros2 extra (Cyclone DDS): pip install 'ctrlbus[ros2]'"
-        )
+        ) from None
 
 
 def dds_topic_name(ros_name: str, namespace: str = "") -> str:
