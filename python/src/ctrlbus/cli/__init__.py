@@ -35,6 +35,7 @@ SUBCOMMANDS: tuple[str, ...] = (
     "spy",
     "capture",
     "replay",
+    "record",
     "config",
     "demo",
     "completion",
