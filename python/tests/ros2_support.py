@@ -88,8 +88,9 @@ def start_bridge(port: int, domain: int, workdir: Path, *extra: str) -> Process:
 class Node:
     """A stand-in for a ROS 2 node: readers that keep every sample, writers to publish."""
 
-    def __init__(self, domain: int) -> None:
-        self._domain = Domain(domain, LOOPBACK_CONFIG)
+    def __init__(self, domain: int, extra_config: str = "") -> None:
+        # extra first: the loopback settings win (Cyclone merges the list, later entries last)
+        self._domain = Domain(domain, f"{extra_config},{LOOPBACK_CONFIG}" if extra_config else LOOPBACK_CONFIG)
         self.participant = DomainParticipant(domain)
         self.samples: dict[str, list[Any]] = {}
         self._readers: list[DataReader] = []

@@ -27,7 +27,7 @@ from ctrlbus.core import CoreConfig, CoreRunner, CoreSession, PollRates, byte_ti
 from ctrlbus.errors import ProtocolTimeout, UsageError
 from ctrlbus.link import Link
 from ctrlbus.ports import open_link
-from ctrlbus.ros2.dds import DISTROS, LOOPBACK_CONFIG, check_domain, require_cyclonedds
+from ctrlbus.ros2.dds import DISTROS, check_domain, loopback_config, require_cyclonedds
 
 __all__ = ["DESCRIPTION", "add_bridge_arguments", "register", "run"]
 
@@ -169,7 +169,7 @@ def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
         runner,
         options,
         domain_id=domain,
-        dds_config=LOOPBACK_CONFIG if args.loopback else None,
+        dds_config=loopback_config(os.environ.get("CYCLONEDDS_URI")) if args.loopback else None,
         extra_sinks=[] if bag is None else [bag],
     )
     stop = stop if stop is not None else threading.Event()

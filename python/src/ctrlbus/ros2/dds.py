@@ -23,6 +23,7 @@ __all__ = [
     "MissingExtraError",
     "QosKind",
     "dds_topic_name",
+    "loopback_config",
     "qos_for",
     "require_cyclonedds",
 ]
@@ -37,6 +38,12 @@ LOOPBACK_CONFIG = (
 )
 
 DISTROS = ("humble", "jazzy")
+
+
+def loopback_config(environment_uri: str | None) -> str:
+    """The configuration of `--loopback`: whatever CYCLONEDDS_URI says (tracing, say), then
+    LOOPBACK_CONFIG, whose settings win (Cyclone merges a comma-separated list, later last)."""
+    return f"{environment_uri},{LOOPBACK_CONFIG}" if environment_uri else LOOPBACK_CONFIG
 MAX_DOMAIN_ID = 232  # ROS 2's limit (DDS allows up to 232 with the default port mapping)
 
 
