@@ -29,17 +29,17 @@ from ctrlbus.ros2.dds import LOOPBACK_CONFIG
 
 os.environ["CYCLONEDDS_URI"] = LOOPBACK_CONFIG
 
-from base_harness import Process  # noqa: E402
-from cyclonedds.core import Listener  # noqa: E402
-from cyclonedds.domain import Domain, DomainParticipant  # noqa: E402
-from cyclonedds.idl import IdlStruct  # noqa: E402
-from cyclonedds.pub import DataWriter  # noqa: E402
-from cyclonedds.sub import DataReader  # noqa: E402
-from cyclonedds.topic import Topic  # noqa: E402
+from base_harness import Process
+from cyclonedds.core import Listener
+from cyclonedds.domain import Domain, DomainParticipant
+from cyclonedds.idl import IdlStruct
+from cyclonedds.pub import DataWriter
+from cyclonedds.sub import DataReader
+from cyclonedds.topic import Topic
 
-from ctrlbus.ros2 import msgs  # noqa: E402
-from ctrlbus.ros2.dds import DEFAULT_QOS, SENSOR_QOS, STATIC_QOS, TF_QOS, QosKind, qos_for  # noqa: E402
-from ctrlbus.sim.server import SimServer, SimSettings  # noqa: E402
+from ctrlbus.ros2 import msgs
+from ctrlbus.ros2.dds import DEFAULT_QOS, SENSOR_QOS, STATIC_QOS, TF_QOS, QosKind, dds_config, qos_for
+from ctrlbus.sim.server import SimServer, SimSettings
 
 WAIT_S = 20.0  # generous: discovery and a busy 2-core machine
 _domains = itertools.count()
@@ -75,9 +75,17 @@ def start_bridge(port: int, domain: int, workdir: Path, *extra: str) -> Process:
     """`ctrlbus ros2` against the simulated base on `port`; returns once it says it bridges."""
     process = Process(
         [
-            sys.executable, "-m", "ctrlbus", "ros2", "--port", f"socket://127.0.0.1:{port}",
-            "--domain", str(domain), "--loopback", *extra,
-        ],  # fmt: skip
+            sys.executable,
+            "-m",
+            "ctrlbus",
+            "ros2",
+            "--port",
+            f"socket://127.0.0.1:{port}",
+            "--domain",
+            str(domain),
+            "--loopback",
+            *extra,
+        ],
         workdir / f"bridge-{domain}.log",
     )
     line = process.read_line(WAIT_S)
@@ -88,23 +96,28 @@ def start_bridge(port: int, domain: int, workdir: Path, *extra: str) -> Process:
 class Node:
     """A stand-in for a ROS 2 node: readers that keep every sample, writers to publish."""
 
-    def __init__(self, domain: int, extra_config: str = "") -> None:
-        # extra first: the loopback settings win (Cyclone merges the list, later entries last)
-        self._domain = Domain(domain, f"{extra_config},{LOOPBACK_CONFIG}" if extra_config else LOOPBACK_CONFIG)
+    def __init__(self, domain: int, trace: Path | None = None) -> None:
+        config = dds_config(loopback=True, trace=None if trace is None else str(trace), environment_uri=None)
+        self._domain = Domain(domain, config)
         self.participant = DomainParticipant(domain)
         self.samples: dict[str, list[Any]] = {}
-        self._readers: list[DataReader] = []
-        self._writers: dict[str, DataWriter] = {}
+        self._readers: list[DataReader[Any]] = []
+        self._writers: dict[str, DataWriter[Any]] = {}
 
     def subscribe(self, dds_name: str, kind: type[IdlStruct], qos: QosKind = DEFAULT_QOS) -> list[Any]:
         received: list[Any] = self.samples.setdefault(dds_name, [])
 
-        def on_data(reader: DataReader) -> None:
+        def on_data(reader: DataReader[Any]) -> None:
             received.extend(sample for sample in reader.take(N=100) if isinstance(sample, kind))
 
         topic = Topic(self.participant, dds_name, kind, qos=qos_for(qos))
         self._readers.append(
-            DataReader(self.participant, topic, qos=qos_for(qos), listener=Listener(on_data_available=on_data))
+            DataReader(
+                self.participant,
+                topic,
+                qos=qos_for(qos),
+                listener=Listener(on_data_available=on_data),  # type: ignore[no-untyped-call]
+            )
         )
         return received
 
@@ -154,7 +167,7 @@ def same_value(ours: Any, theirs: Any, path: str) -> Iterator[str]:
         if len(ours) != len(their_list):
             yield f"{path}: {len(ours)} items, theirs {len(their_list)}"
             return
-        for index, (a, b) in enumerate(zip(ours, their_list)):
+        for index, (a, b) in enumerate(zip(ours, their_list, strict=True)):
             yield from same_value(a, b, f"{path}[{index}]")
         return
     if isinstance(ours, float):

@@ -15,6 +15,7 @@ import time
 from pathlib import Path
 
 import pytest
+from cyclonedds.builtin import BuiltinDataReader, BuiltinTopicDcpsPublication, BuiltinTopicDcpsSubscription
 from ros2_support import (
     Node,
     diagnostic_values,
@@ -27,8 +28,6 @@ from ros2_support import (
     wait_for,
     yaw_of,
 )
-
-from cyclonedds.builtin import BuiltinDataReader, BuiltinTopicDcpsPublication, BuiltinTopicDcpsSubscription
 from rosbags.typesys import Stores, get_typestore
 
 from ctrlbus.kinematics import relative_pose
@@ -71,7 +70,13 @@ def test_cmd_vel_drives_the_base_and_the_topics_tell_the_truth(sim, tmp_path: Pa
         odom = node.samples["rt/odom"]
         wait_for("odometry", lambda: odom)
         diagnostics = node.samples["rt/diagnostics"]
-        wait_for("connected", lambda: diagnostics and diagnostic_values(diagnostics[-1], "ctrlbus: control bus link")["state"] == "connected")
+        wait_for(
+            "connected",
+            lambda: (
+                diagnostics
+                and diagnostic_values(diagnostics[-1], "ctrlbus: control bus link")["state"] == "connected"
+            ),
+        )
 
         # drive: a command every 0.1 s for 1.5 s, then silence
         end = time.monotonic() + 1.5
@@ -103,7 +108,10 @@ def test_cmd_vel_drives_the_base_and_the_topics_tell_the_truth(sim, tmp_path: Pa
         wait_for("odometry equal to the simulator's", settled)
         last = odom[-1]
         assert (last.header.frame_id, last.child_frame_id) == ("odom", "base_link")
-        tf = wait_for("tf", lambda: [m for m in node.samples["rt/tf"] if m.transforms[0].header.stamp == last.header.stamp])
+        tf = wait_for(
+            "tf",
+            lambda: [m for m in node.samples["rt/tf"] if m.transforms[0].header.stamp == last.header.stamp],
+        )
         transform = tf[0].transforms[0]
         assert (transform.header.frame_id, transform.child_frame_id) == ("odom", "base_link")
         assert transform.transform.translation.x == last.pose.pose.position.x
@@ -113,7 +121,9 @@ def test_cmd_vel_drives_the_base_and_the_topics_tell_the_truth(sim, tmp_path: Pa
         assert abs(battery.percentage - world.battery_percent / 100) < 0.011
         assert battery.power_supply_status == msgs.POWER_SUPPLY_STATUS_DISCHARGING
         ranges = node.samples["rt/range/sensor_0"]
-        wait_for("a range after the stop", lambda: ranges and ranges[-1].header.stamp.seconds > time.time() - 0.5)
+        wait_for(
+            "a range after the stop", lambda: ranges and ranges[-1].header.stamp.seconds > time.time() - 0.5
+        )
         hit = world.distance_hits_mm()[0]
         reading = ranges[-1].range
         if hit is None or hit >= 2500:
@@ -129,8 +139,10 @@ def test_cmd_vel_drives_the_base_and_the_topics_tell_the_truth(sim, tmp_path: Pa
         # diagnostics: health, link and the watchdog's stop counted
         array = wait_for(
             "the watchdog's stop in diagnostics",
-            lambda: int(diagnostic_values(diagnostics[-1], "ctrlbus: ros2 bridge")["watchdog_stops"]) == 1
-            and diagnostics[-1],
+            lambda: (
+                int(diagnostic_values(diagnostics[-1], "ctrlbus: ros2 bridge")["watchdog_stops"]) == 1
+                and diagnostics[-1]
+            ),
         )
         assert int(diagnostic_values(array, "ctrlbus: control bus link")["lost_requests"]) == 0
         assert diagnostic_values(array, "ctrlbus: bumpers and cliffs")["bumper_0"] == "false"
@@ -154,10 +166,16 @@ def test_cmd_vel_drives_the_base_and_the_topics_tell_the_truth(sim, tmp_path: Pa
         wait_for(f"discovery of {wanted}", publications)
         subscriptions = BuiltinDataReader(node.participant, BuiltinTopicDcpsSubscription)
         subs: set[tuple[str, str]] = set()
+
+        def subscribed() -> bool:
+            subs.update(
+                (s.topic_name, s.type_name) for s in subscriptions.take(N=200) if hasattr(s, "topic_name")
+            )
+            return ("rt/cmd_vel", "geometry_msgs::msg::dds_::Twist_") in subs
+
         wait_for(
             "the bridge's cmd_vel subscription",
-            lambda: subs.update((s.topic_name, s.type_name) for s in subscriptions.take(N=200) if hasattr(s, "topic_name"))
-            or ("rt/cmd_vel", "geometry_msgs::msg::dds_::Twist_") in subs,
+            subscribed,
         )
 
         # every message, decoded again by rosbags, field by field
@@ -173,8 +191,20 @@ def test_bad_cmd_vel_never_reaches_the_base_and_is_counted(sim, tmp_path: Path) 
     diagnostics = node.subscribe("rt/diagnostics", msgs.DiagnosticArray)
     bridge = start_bridge(sim_port(sim), domain, tmp_path, "--rates", "diagnostics=10")
     try:
-        wait_for("connected", lambda: diagnostics and diagnostic_values(diagnostics[-1], "ctrlbus: control bus link")["state"] == "connected")
-        bad = [twist(math.nan, 0.0), twist(0.1, math.inf), twist(-math.inf, 0.0), twist(100.0, 0.0), twist(0.0, -1e9)]
+        wait_for(
+            "connected",
+            lambda: (
+                diagnostics
+                and diagnostic_values(diagnostics[-1], "ctrlbus: control bus link")["state"] == "connected"
+            ),
+        )
+        bad = [
+            twist(math.nan, 0.0),
+            twist(0.1, math.inf),
+            twist(-math.inf, 0.0),
+            twist(100.0, 0.0),
+            twist(0.0, -1e9),
+        ]
         for message in bad:
             node.publish("rt/cmd_vel", message)
 
@@ -190,9 +220,20 @@ def test_bad_cmd_vel_never_reaches_the_base_and_is_counted(sim, tmp_path: Path) 
 
         # over the limit but plausible: clamped to the Core's 0.5 m/s
         node.publish("rt/cmd_vel", twist(2.0, 0.0))
-        left, right = wait_for("the clamped command", lambda: world.commanded_wheel_speeds if world.commanded_wheel_speeds != (0.0, 0.0) else None)
+        left, right = wait_for(
+            "the clamped command",
+            lambda: world.commanded_wheel_speeds if world.commanded_wheel_speeds != (0.0, 0.0) else None,
+        )
         assert left == right and 0 < left <= 500.0 + 1e-6
-        values = wait_for("the clamp counted", lambda: (v := diagnostic_values(diagnostics[-1], "ctrlbus: ros2 bridge")) and v["cmd_vel_clamped"] == "1" and v)
+
+        def clamp_counted() -> dict[str, str] | None:
+            values = diagnostic_values(diagnostics[-1], "ctrlbus: ros2 bridge")
+            return values if values["cmd_vel_clamped"] == "1" else None
+
+        values = wait_for(
+            "the clamp counted",
+            clamp_counted,
+        )
         assert values["cmd_vel_applied"] == "1"
     finally:
         bridge.stop()
@@ -209,7 +250,7 @@ def test_killed_bridge_leaves_the_stop_to_the_base_watchdog(sim, tmp_path: Path)
 
         def driving() -> bool:
             node.publish("rt/cmd_vel", twist(0.1, 0.0))
-            return world.commanded_wheel_speeds != (0.0, 0.0)
+            return bool(world.commanded_wheel_speeds != (0.0, 0.0))
 
         wait_for("the wheels driven", driving)
         bridge.popen.send_signal(signal.SIGKILL)
@@ -227,17 +268,21 @@ def test_namespace_stamped_humble_and_the_commands(sim, tmp_path: Path) -> None:
     odom = node.subscribe("rt/robot1/odom", msgs.Odometry)
     ranges = node.subscribe("rt/robot1/range/sensor_0", msgs.RangeHumble, SENSOR_QOS)
     diagnostics = node.subscribe("rt/diagnostics", msgs.DiagnosticArray)
-    bridge = start_bridge(sim_port(sim), domain, tmp_path, "--namespace", "robot1", "--stamped", "--distro", "humble")
+    bridge = start_bridge(
+        sim_port(sim), domain, tmp_path, "--namespace", "robot1", "--stamped", "--distro", "humble"
+    )
     try:
         wait_for("odometry", lambda: odom)
         wait_for("a Humble range", lambda: ranges)
 
         def stamped(vx: float) -> msgs.TwistStamped:
-            return msgs.TwistStamped(msgs.Header(msgs.Time.from_seconds(time.time()), "base_link"), twist(vx, 0.0))
+            return msgs.TwistStamped(
+                msgs.Header(msgs.Time.from_seconds(time.time()), "base_link"), twist(vx, 0.0)
+            )
 
         def driving() -> bool:
             node.publish("rt/robot1/cmd_vel", stamped(0.15))
-            return world.commanded_wheel_speeds != (0.0, 0.0)
+            return bool(world.commanded_wheel_speeds != (0.0, 0.0))
 
         wait_for("driven by TwistStamped", driving)
 
@@ -247,7 +292,10 @@ def test_namespace_stamped_humble_and_the_commands(sim, tmp_path: Path) -> None:
         node.publish("rt/robot1/cmd_vel", stamped(0.15))
         wait_for(
             "the ignored command seen",
-            lambda: diagnostics and diagnostic_values(diagnostics[-1], "ctrlbus: ros2 bridge")["estop_latched"] == "true",
+            lambda: (
+                diagnostics
+                and diagnostic_values(diagnostics[-1], "ctrlbus: ros2 bridge")["estop_latched"] == "true"
+            ),
         )
         assert world.commanded_wheel_speeds == (0.0, 0.0)
         node.publish("rt/robot1/emergency_stop", msgs.Bool(False))
@@ -257,7 +305,10 @@ def test_namespace_stamped_humble_and_the_commands(sim, tmp_path: Path) -> None:
 
         # reset_odometry: the odom frame starts again where the robot is
         node.publish("rt/robot1/reset_odometry", msgs.Empty())
-        wait_for("odometry reset", lambda: abs(odom[-1].pose.pose.position.x) < 1e-6 and abs(odom[-1].pose.pose.position.y) < 1e-6)
+        wait_for(
+            "odometry reset",
+            lambda: abs(odom[-1].pose.pose.position.x) < 1e-6 and abs(odom[-1].pose.pose.position.y) < 1e-6,
+        )
 
         assert check_with_rosbags(node, "humble") > 10
     finally:

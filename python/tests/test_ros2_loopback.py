@@ -13,7 +13,6 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-import pytest
 from ros2_support import Node, sim_port, start_bridge, start_sim, unique_domain, wait_for
 
 from ctrlbus.ros2 import msgs
@@ -21,13 +20,6 @@ from ctrlbus.ros2 import msgs
 ADDRESS = re.compile(r"udp6?/([0-9a-fA-F.:\[\]]+?)(?::\d+)?(?:@\d+)?(?=[\s,)(]|$)")
 # lines that describe the host or the configuration, not where anything is sent
 NOT_DESTINATIONS = ("config:", " interfaces: ", " SPDP MC: ", " default MC: ")
-
-
-def tracing(path: Path) -> str:
-    return (
-        "<CycloneDDS><Domain><Tracing><Category>discovery,config</Category>"
-        f"<OutputFile>{path}</OutputFile></Tracing></Domain></CycloneDDS>"
-    )
 
 
 def destinations(trace: str) -> set[str]:
@@ -53,14 +45,13 @@ def test_the_addresses_are_found_in_a_trace_line() -> None:
     assert destinations("python: SPDP MC: udp/239.255.0.1") == set()
 
 
-def test_bridge_and_node_discover_each_other_on_loopback_only(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_bridge_and_node_discover_each_other_on_loopback_only(tmp_path: Path) -> None:
     sim = start_sim(seed=1)
     domain = unique_domain()
     node_trace, bridge_trace = tmp_path / "node.trace", tmp_path / "bridge.trace"
-    node = Node(domain, tracing(node_trace))
+    node = Node(domain, node_trace)
     odom = node.subscribe("rt/odom", msgs.Odometry)
-    monkeypatch.setenv("CYCLONEDDS_URI", tracing(bridge_trace))  # merged under --loopback's settings
-    bridge = start_bridge(sim_port(sim), domain, tmp_path)
+    bridge = start_bridge(sim_port(sim), domain, tmp_path, "--dds-trace", str(bridge_trace))
     try:
         wait_for("odometry", lambda: len(odom) > 5)
         node.publish("rt/cmd_vel", msgs.Twist())

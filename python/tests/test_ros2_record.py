@@ -14,10 +14,10 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from ros2_support import Node, same_value, sim_port, start_bridge, start_sim, twist, unique_domain, wait_for
-
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
+from ros2_support import Node, same_value, sim_port, start_bridge, start_sim, twist, unique_domain, wait_for
+from rosbags.interfaces import ConnectionExtRosbag2
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_typestore
 from test_capture_replay import _Recorder
@@ -42,10 +42,17 @@ def read_bag(path: Path, distro: str = "jazzy") -> dict[str, list[tuple[int, Any
     """topic -> [(log time ns, our decoded message)], after checking that rosbags and mcap_ros2
     decode every message to the same fields as our types do."""
     store = get_typestore(Stores.ROS2_JAZZY if distro == "jazzy" else Stores.ROS2_HUMBLE)
-    types = dict(TYPES, **{"sensor_msgs/msg/Range": msgs.RangeJazzy if distro == "jazzy" else msgs.RangeHumble})
+    types = dict(
+        TYPES, **{"sensor_msgs/msg/Range": msgs.RangeJazzy if distro == "jazzy" else msgs.RangeHumble}
+    )
     ours: dict[str, list[tuple[int, Any]]] = defaultdict(list)
     with Reader(path) as reader:
-        qos = {connection.topic: connection.ext.offered_qos_profiles for connection in reader.connections}
+        exts = {connection.topic: connection.ext for connection in reader.connections}
+        qos = {
+            topic: ext.offered_qos_profiles
+            for topic, ext in exts.items()
+            if isinstance(ext, ConnectionExtRosbag2)
+        }
         for connection, stamp, raw in reader.messages():
             message = types[connection.msgtype].deserialize(raw)
             theirs = store.deserialize_cdr(raw, connection.msgtype)
@@ -56,7 +63,9 @@ def read_bag(path: Path, distro: str = "jazzy") -> dict[str, list[tuple[int, Any
     (mcap_file,) = path.glob("*.mcap")
     seen: dict[str, int] = defaultdict(int)
     with mcap_file.open("rb") as stream:
-        for _, channel, record, decoded in make_reader(stream, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
+        for _, channel, record, decoded in make_reader(
+            stream, decoder_factories=[DecoderFactory()]
+        ).iter_decoded_messages():
             topic = channel.topic
             stamp, message = ours[topic][seen[topic]]
             assert record.log_time == stamp
@@ -87,19 +96,28 @@ def test_a_capture_becomes_a_rosbag_that_two_readers_agree_on(tmp_path: Path) ->
     bag = tmp_path / "drive-bag"
     assert main(["record", "--rosbag", str(bag), "--capture", str(capture)]) == 0
     topics = read_bag(bag)
-    assert {"/odom", "/tf", "/tf_static", "/battery_state", "/bumper_cloud", "/diagnostics", "/range/sensor_0"} <= set(topics)
+    assert {
+        "/odom",
+        "/tf",
+        "/tf_static",
+        "/battery_state",
+        "/bumper_cloud",
+        "/diagnostics",
+        "/range/sensor_0",
+    } <= set(topics)
     # the bag's odometry ends where the Core's own pose does (the same answers, applied the same way)
     _, last = topics["/odom"][-1]
     assert last.pose.pose.position.x == pytest.approx(core.pose.x_mm / 1000, abs=1e-9)
     assert last.pose.pose.position.y == pytest.approx(core.pose.y_mm / 1000, abs=1e-9)
-    assert math.degrees(2 * math.atan2(last.pose.pose.orientation.z, last.pose.pose.orientation.w)) == pytest.approx(
-        (core.pose.theta_deg + 180) % 360 - 180, abs=1e-6
-    )
+    assert math.degrees(
+        2 * math.atan2(last.pose.pose.orientation.z, last.pose.pose.orientation.w)
+    ) == pytest.approx((core.pose.theta_deg + 180) % 360 - 180, abs=1e-6)
     # odometry at 20 Hz of capture time, stamped with it
     stamps = [stamp for stamp, _ in topics["/odom"]]
     assert 60 <= len(stamps) <= 100
     assert stamps == sorted(stamps)
     battery = topics["/battery_state"][-1][1]
+    assert core.battery_percent is not None
     assert battery.percentage == pytest.approx(core.battery_percent / 100)
 
 

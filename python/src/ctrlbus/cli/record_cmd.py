@@ -17,6 +17,7 @@ import argparse
 import sys
 import threading
 import time
+from functools import partial
 from typing import Any
 
 from ctrlbus.cli.common import add_baud_argument, positive_number, stop_on_signals
@@ -44,7 +45,9 @@ def register(subparsers: Any) -> None:
     source.add_argument("--capture", metavar="FILE", help="a capture of a Core and a base (pcap)")
     add_baud_argument(parser)
     add_bridge_arguments(parser)
-    parser.add_argument("--duration", default="0", metavar="S", help="live: stop after S seconds (default: Ctrl-C)")
+    parser.add_argument(
+        "--duration", default="0", metavar="S", help="live: stop after S seconds (default: Ctrl-C)"
+    )
     parser.add_argument(
         "--connect-timeout",
         default=str(DEFAULT_CONNECT_TIMEOUT_S),
@@ -72,8 +75,10 @@ def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
         with RosbagSink(args.rosbag, distro=args.distro) as bag:
             pump = TopicPump(maker, rates, [bag], namespace=args.namespace)
             for moment in capture_moments(args.capture, model):
-                pump.run(moment, lambda at=moment: model.state(at), counters)
-        print(f"ctrlbus record: {bag.messages} messages from {args.capture} in {args.rosbag}", file=sys.stderr)
+                pump.run(moment, partial(model.state, moment), counters)
+        print(
+            f"ctrlbus record: {bag.messages} messages from {args.capture} in {args.rosbag}", file=sys.stderr
+        )
         return 0
 
     from ctrlbus.ros2.bridge import session_state
@@ -103,7 +108,9 @@ def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
                     with runner.lock:
                         connects = session.connects
                     if connect_timeout and elapsed > connect_timeout and connects == 0:
-                        raise ProtocolTimeout(f"no answer to CONNECT_BASE from {args.port} within {connect_timeout:g} s")
+                        raise ProtocolTimeout(
+                            f"no answer to CONNECT_BASE from {args.port} within {connect_timeout:g} s"
+                        )
                     if duration and elapsed >= duration:
                         break
                     if runner.failure is not None:

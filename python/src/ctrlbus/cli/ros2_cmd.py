@@ -27,7 +27,7 @@ from ctrlbus.core import CoreConfig, CoreRunner, CoreSession, PollRates, byte_ti
 from ctrlbus.errors import ProtocolTimeout, UsageError
 from ctrlbus.link import Link
 from ctrlbus.ports import open_link
-from ctrlbus.ros2.dds import DISTROS, check_domain, loopback_config, require_cyclonedds
+from ctrlbus.ros2.dds import DISTROS, check_domain, dds_config, require_cyclonedds
 
 __all__ = ["DESCRIPTION", "add_bridge_arguments", "register", "run"]
 
@@ -49,7 +49,9 @@ DDS configuration: CYCLONEDDS_URI as usual; --loopback keeps all DDS traffic on 
 
 def add_bridge_arguments(parser: argparse.ArgumentParser) -> None:
     """The options that shape the topics (shared with `ctrlbus record --rosbag`)."""
-    parser.add_argument("--namespace", default="", metavar="NS", help="ROS 2 namespace of the topics (default none)")
+    parser.add_argument(
+        "--namespace", default="", metavar="NS", help="ROS 2 namespace of the topics (default none)"
+    )
     parser.add_argument(
         "--distro",
         choices=DISTROS,
@@ -57,12 +59,15 @@ def add_bridge_arguments(parser: argparse.ArgumentParser) -> None:
         help="message layouts of this ROS 2 release (sensor_msgs/Range differs; default jazzy)",
     )
     parser.add_argument("--odom-frame", default="odom", metavar="F", help="odometry frame (default odom)")
-    parser.add_argument("--base-frame", default="base_link", metavar="F", help="robot frame (default base_link)")
+    parser.add_argument(
+        "--base-frame", default="base_link", metavar="F", help="robot frame (default base_link)"
+    )
     parser.add_argument(
         "--rates",
         default="",
         metavar="NAME=HZ,...",
-        help="publishing rates: odom (and tf, default 20), range (10), bumper (10), battery (1), diagnostics (1)",
+        help="publishing rates: odom (and tf, default 20), range (10), bumper (10), battery (1), "
+        "diagnostics (1)",
     )
     parser.add_argument(
         "--range",
@@ -97,22 +102,39 @@ def register(subparsers: Any) -> None:
         metavar="S",
         help="stop the wheels when no cmd_vel came for S seconds (default 0.5)",
     )
-    parser.add_argument("--core-rates", default="", metavar="NAME=HZ,...", help="the Core's polling rates (as ctrlbus core --rates)")
+    parser.add_argument(
+        "--core-rates",
+        default="",
+        metavar="NAME=HZ,...",
+        help="the Core's polling rates (as ctrlbus core --rates)",
+    )
     parser.add_argument(
         "--profile",
         choices=[profile.value for profile in Profile],
         default=Profile.REFERENCE.value,
         help="requests in standard frames (reference, default) or long frames (sdk2020)",
     )
-    parser.add_argument("--rosbag", default=None, metavar="DIR", help="also record the topics as a rosbag2 (MCAP)")
-    parser.add_argument("--loopback", action="store_true", help="keep DDS on the loopback interface (lo, no multicast)")
+    parser.add_argument(
+        "--rosbag", default=None, metavar="DIR", help="also record the topics as a rosbag2 (MCAP)"
+    )
+    parser.add_argument(
+        "--loopback",
+        action="store_true",
+        help="keep DDS on the loopback interface (lo, no multicast, peer 127.0.0.1; CYCLONEDDS_URI unread)",
+    )
+    parser.add_argument(
+        "--dds-trace", default=None, metavar="FILE", help="write Cyclone DDS's discovery trace to FILE"
+    )
     parser.add_argument(
         "--connect-timeout",
         default=str(DEFAULT_CONNECT_TIMEOUT_S),
         metavar="S",
-        help=f"exit 2 if the base has not answered within S seconds (default {DEFAULT_CONNECT_TIMEOUT_S:g}; 0 waits forever)",
+        help=f"exit 2 if the base has not answered within S seconds (default "
+        f"{DEFAULT_CONNECT_TIMEOUT_S:g}; 0 waits forever)",
     )
-    parser.add_argument("--duration", default="0", metavar="S", help="stop after S seconds (default 0: until Ctrl-C)")
+    parser.add_argument(
+        "--duration", default="0", metavar="S", help="stop after S seconds (default 0: until Ctrl-C)"
+    )
     parser.set_defaults(func=run)
 
 
@@ -129,7 +151,9 @@ def maker_from_args(args: argparse.Namespace) -> Any:
     from ctrlbus.ros2.topics import MessageMaker, RangeSpec
 
     ranges = dict(RangeSpec.parse(text) for text in args.range)
-    return MessageMaker(odom_frame=args.odom_frame, base_frame=args.base_frame, distro=args.distro, ranges=ranges)
+    return MessageMaker(
+        odom_frame=args.odom_frame, base_frame=args.base_frame, distro=args.distro, ranges=ranges
+    )
 
 
 def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
@@ -169,7 +193,9 @@ def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
         runner,
         options,
         domain_id=domain,
-        dds_config=loopback_config(os.environ.get("CYCLONEDDS_URI")) if args.loopback else None,
+        dds_config=dds_config(
+            loopback=args.loopback, trace=args.dds_trace, environment_uri=os.environ.get("CYCLONEDDS_URI")
+        ),
         extra_sinks=[] if bag is None else [bag],
     )
     stop = stop if stop is not None else threading.Event()
@@ -186,7 +212,11 @@ def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
             )
             while not stop.wait(0.1):
                 if runner.failure is not None or bridge.failure is not None:
-                    print(f"ctrlbus ros2: failed: {runner.failure or bridge.failure}", file=sys.stderr, flush=True)
+                    print(
+                        f"ctrlbus ros2: failed: {runner.failure or bridge.failure}",
+                        file=sys.stderr,
+                        flush=True,
+                    )
                     return 1
                 elapsed = time.monotonic() - started
                 with runner.lock:
@@ -204,9 +234,10 @@ def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
         if bag is not None:
             bag.close()
     counters = bridge.counters
+    dropped = counters.cmd_vel_dropped_nonfinite + counters.cmd_vel_dropped_absurd
     print(
         f"ctrlbus ros2: stopped; {bridge.pump.published} messages published, cmd_vel received "
-        f"{counters.cmd_vel_received}, dropped {counters.cmd_vel_dropped_nonfinite + counters.cmd_vel_dropped_absurd}, "
+        f"{counters.cmd_vel_received}, dropped {dropped}, "
         f"watchdog stops {counters.watchdog_stops}",
         file=sys.stderr,
         flush=True,

@@ -87,9 +87,9 @@ class DdsSink:
 
     def __init__(self, participant: DomainParticipant) -> None:
         self.participant = participant
-        self._writers: dict[str, DataWriter] = {}
+        self._writers: dict[str, DataWriter[Any]] = {}
 
-    def writer(self, ros_name: str, message_type: type[IdlStruct], qos: QosKind) -> DataWriter:
+    def writer(self, ros_name: str, message_type: type[IdlStruct], qos: QosKind) -> DataWriter[Any]:
         writer = self._writers.get(ros_name)
         if writer is None:
             topic = Topic(self.participant, dds_topic_name(ros_name), message_type, qos=qos_for(qos))
@@ -136,7 +136,7 @@ class Ros2Bridge:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._last_cmd_vel: float | None = None  # monotonic time of the last applied cmd_vel
-        self._readers: list[DataReader] = []
+        self._readers: list[DataReader[Any]] = []
         self.failure: str | None = None
 
     # ------------------------------------------------------------------------------ lifecycle
@@ -162,7 +162,7 @@ class Ros2Bridge:
             name = absolute_name(ros_name, options.namespace)
             topic = Topic(self.participant, dds_topic_name(name), kind, qos=qos_for(DEFAULT_QOS))
 
-            def on_data_available(data_reader: DataReader) -> None:
+            def on_data_available(data_reader: DataReader[Any]) -> None:
                 try:
                     for sample in data_reader.take(N=100):
                         if isinstance(sample, kind):  # not a writer's dispose or unregister
@@ -170,8 +170,10 @@ class Ros2Bridge:
                 except Exception:  # a bad sample must not kill DDS's listener thread
                     log.exception("the ros2 bridge failed on a %s message", ros_name)
 
-            listener = Listener(on_data_available=on_data_available)
-            self._readers.append(DataReader(self.participant, topic, qos=qos_for(DEFAULT_QOS), listener=listener))
+            listener = Listener(on_data_available=on_data_available)  # type: ignore[no-untyped-call]
+            self._readers.append(
+                DataReader(self.participant, topic, qos=qos_for(DEFAULT_QOS), listener=listener)
+            )
 
         if options.stamped:
             reader(names.cmd_vel, msgs.TwistStamped, lambda sample: self.on_cmd_vel(sample.twist))

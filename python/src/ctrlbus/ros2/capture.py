@@ -22,6 +22,7 @@ from ctrlbus.core.readings import apply_reading
 from ctrlbus.core.telemetry import BaseIdentity, BaseTelemetry, CommandState, HealthError, HealthState
 from ctrlbus.errors import CtrlbusError
 from ctrlbus.messages import (
+    AnswerMessage,
     ConnectBaseAnswer,
     ErrorAnswer,
     GetBaseConfAdvAnswer,
@@ -88,7 +89,7 @@ class CaptureModel:
             self._health_errors.append(HealthError(message.error_code, message.message))
             if len(self._health_errors) >= self._health_expected:
                 telemetry.health = HealthState(self._health_flags, tuple(self._health_errors))
-        else:
+        elif isinstance(message, AnswerMessage):
             apply_reading(telemetry, None, message, note.time or 0.0)
 
     def state(self, stamp_s: float) -> BaseState:
@@ -112,7 +113,10 @@ class CaptureModel:
             command=self._command,
             serial="" if identity is None else identity.serial,
             link={
-                "connection": {"state": "connected" if connected else "connecting", "connects": self.connects},
+                "connection": {
+                    "state": "connected" if connected else "connecting",
+                    "connects": self.connects,
+                },
                 "answers": self.answers,
                 "line_faults_by_bit": {"any": self.line_faults},
                 "source": "capture",

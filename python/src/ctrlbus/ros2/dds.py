@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
+from xml.sax.saxutils import escape
 
 from ctrlbus.errors import UsageError
 
@@ -22,17 +23,18 @@ __all__ = [
     "LOOPBACK_CONFIG",
     "MissingExtraError",
     "QosKind",
+    "dds_config",
     "dds_topic_name",
-    "loopback_config",
     "qos_for",
     "require_cyclonedds",
+    "tracing_config",
 ]
 
 # DDS kept on this machine: only the loopback interface, no multicast, the one peer 127.0.0.1
 # (unicast discovery, participant indices so that several processes find each other).
 LOOPBACK_CONFIG = (
-    "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"lo\"/></Interfaces>"
-    "<AllowMulticast>false</AllowMulticast></General><Discovery><Peers><Peer address=\"127.0.0.1\"/>"
+    '<CycloneDDS><Domain><General><Interfaces><NetworkInterface name="lo"/></Interfaces>'
+    '<AllowMulticast>false</AllowMulticast></General><Discovery><Peers><Peer address="127.0.0.1"/>'
     "</Peers><ParticipantIndex>auto</ParticipantIndex><MaxAutoParticipantIndex>60</MaxAutoParticipantIndex>"
     "</Discovery></Domain></CycloneDDS>"
 )
@@ -40,10 +42,27 @@ LOOPBACK_CONFIG = (
 DISTROS = ("humble", "jazzy")
 
 
-def loopback_config(environment_uri: str | None) -> str:
-    """The configuration of `--loopback`: whatever CYCLONEDDS_URI says (tracing, say), then
-    LOOPBACK_CONFIG, whose settings win (Cyclone merges a comma-separated list, later last)."""
-    return f"{environment_uri},{LOOPBACK_CONFIG}" if environment_uri else LOOPBACK_CONFIG
+def tracing_config(path: str) -> str:
+    """A configuration that writes Cyclone's discovery and configuration trace to `path` (it
+    names every address a participant sends to: how the tests check that DDS stays on lo)."""
+    return (
+        "<CycloneDDS><Domain><Tracing><Category>discovery,config</Category>"
+        f"<OutputFile>{escape(path)}</OutputFile></Tracing></Domain></CycloneDDS>"
+    )
+
+
+def dds_config(*, loopback: bool, trace: str | None, environment_uri: str | None) -> str | None:
+    """The configuration the bridge gives its domain, or None to leave it to CYCLONEDDS_URI.
+
+    `loopback` uses LOOPBACK_CONFIG alone, never merged with CYCLONEDDS_URI: Cyclone merges
+    interface lists, so another configuration's interfaces would be added to lo. A trace is
+    merged in (it names no interface); without `loopback` it comes after CYCLONEDDS_URI's."""
+    base = LOOPBACK_CONFIG if loopback else environment_uri
+    if trace is None:
+        return base if loopback else None
+    return f"{base},{tracing_config(trace)}" if base else tracing_config(trace)
+
+
 MAX_DOMAIN_ID = 232  # ROS 2's limit (DDS allows up to 232 with the default port mapping)
 
 

@@ -16,11 +16,19 @@ Needs the `ros2` extra (cyclonedds); nothing else in ctrlbus imports this module
 
 # No `from __future__ import annotations`: cyclonedds reads the annotations as types.
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from cyclonedds.idl import IdlStruct
-from cyclonedds.idl.types import array, float32, float64, int32, sequence, uint8, uint32
+from cyclonedds.idl.types import float32, float64, int32, uint8, uint32
+
+if TYPE_CHECKING:  # for mypy an IDL sequence or array is the list it holds at run time
+    array = list
+    sequence = list
+else:
+    from cyclonedds.idl.types import array, sequence
 
 __all__ = [
+    "BatteryState",
     "Bool",
     "DiagnosticArray",
     "DiagnosticStatus",
@@ -44,7 +52,6 @@ __all__ = [
     "TwistStamped",
     "TwistWithCovariance",
     "Vector3",
-    "BatteryState",
 ]
 
 # The names ROS 2 tools show (`ros2 topic info`), for the record and the docs.
@@ -131,7 +138,7 @@ class Pose(IdlStruct, typename="geometry_msgs::msg::dds_::Pose_"):
 @dataclass
 class PoseWithCovariance(IdlStruct, typename="geometry_msgs::msg::dds_::PoseWithCovariance_"):
     pose: Pose = field(default_factory=Pose)
-    covariance: array[float64, 36] = field(default_factory=lambda: [0.0] * 36)
+    covariance: array[float64, 36] = field(default_factory=lambda: [0.0] * 36)  # type: ignore[type-arg,valid-type]
 
 
 @dataclass
@@ -149,7 +156,7 @@ class TwistStamped(IdlStruct, typename="geometry_msgs::msg::dds_::TwistStamped_"
 @dataclass
 class TwistWithCovariance(IdlStruct, typename="geometry_msgs::msg::dds_::TwistWithCovariance_"):
     twist: Twist = field(default_factory=Twist)
-    covariance: array[float64, 36] = field(default_factory=lambda: [0.0] * 36)
+    covariance: array[float64, 36] = field(default_factory=lambda: [0.0] * 36)  # type: ignore[type-arg,valid-type]
 
 
 @dataclass
@@ -299,12 +306,20 @@ class DiagnosticArray(IdlStruct, typename="diagnostic_msgs::msg::dds_::Diagnosti
 
 
 for _type in (
-    Empty, Bool, Twist, TwistStamped, Odometry, TFMessage, BatteryState, RangeJazzy, PointCloud2,
+    Empty,
+    Bool,
+    Twist,
+    TwistStamped,
+    Odometry,
+    TFMessage,
+    BatteryState,
+    RangeJazzy,
+    PointCloud2,
     DiagnosticArray,
-):  # fmt: skip
-    ROS_TYPE_NAMES[_type.__idl_typename__] = _ros_name(_type.__idl_typename__)  # type: ignore[attr-defined]
+):
+    ROS_TYPE_NAMES[_type.__idl_typename__] = _ros_name(_type.__idl_typename__)
 
 
 def ros_type_name(message_type: type[IdlStruct]) -> str:
     """`nav_msgs/msg/Odometry` for the DDS type `nav_msgs::msg::dds_::Odometry_`."""
-    return _ros_name(message_type.__idl_typename__)  # type: ignore[attr-defined]
+    return _ros_name(message_type.__idl_typename__)

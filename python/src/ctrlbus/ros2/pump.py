@@ -19,7 +19,14 @@ from cyclonedds.idl import IdlStruct
 
 from ctrlbus.errors import UsageError
 from ctrlbus.ros2.dds import QosKind
-from ctrlbus.ros2.topics import BaseState, BridgeCounters, MessageMaker, TopicNames, absolute_name, topic_table
+from ctrlbus.ros2.topics import (
+    BaseState,
+    BridgeCounters,
+    MessageMaker,
+    TopicNames,
+    absolute_name,
+    topic_table,
+)
 
 __all__ = ["Rates", "Sink", "TopicPump"]
 
@@ -41,7 +48,9 @@ class Rates:
         for item in filter(None, (part.strip() for part in text.split(","))):
             name, _, number = item.partition("=")
             if name not in cls.__dataclass_fields__:
-                raise UsageError(f"--rates: unknown topic {name!r} (names: {', '.join(cls.__dataclass_fields__)})")
+                raise UsageError(
+                    f"--rates: unknown topic {name!r} (names: {', '.join(cls.__dataclass_fields__)})"
+                )
             try:
                 hz = float(number)
             except ValueError:
@@ -77,9 +86,12 @@ class TopicPump:
         self._periods = {
             key: 1.0 / hz
             for key, hz in (
-                ("odom", rates.odom), ("range", rates.range), ("bumper", rates.bumper),
-                ("battery", rates.battery), ("diagnostics", rates.diagnostics),
-            )  # fmt: skip
+                ("odom", rates.odom),
+                ("range", rates.range),
+                ("bumper", rates.bumper),
+                ("battery", rates.battery),
+                ("diagnostics", rates.diagnostics),
+            )
             if hz > 0
         }
         self._next: dict[str, float] = {}
@@ -89,7 +101,9 @@ class TopicPump:
     def topics(self, sensor_slots: tuple[int, ...] = ()) -> dict[str, tuple[str, type[IdlStruct], QosKind]]:
         """key -> (absolute ROS 2 name, type, QoS)."""
         table = topic_table(self.names, self.maker.distro, sensor_slots)
-        return {key: (absolute_name(name, self.namespace), kind, qos) for key, (name, kind, qos) in table.items()}
+        return {
+            key: (absolute_name(name, self.namespace), kind, qos) for key, (name, kind, qos) in table.items()
+        }
 
     def next_due(self, now: float) -> float:
         """When something is next due (now, before the first run)."""

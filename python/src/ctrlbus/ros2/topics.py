@@ -42,14 +42,14 @@ __all__ = [
 # base: x, y and yaw get a variance, z, roll and pitch are not measured (a large variance, as
 # REP 105 bases do so that a filter ignores them).
 _UNMEASURED = 1e6
-POSE_COVARIANCE = tuple(
-    [0.01, 0, 0, 0, 0, 0, 0, 0.01, 0, 0, 0, 0, 0, 0, _UNMEASURED, 0, 0, 0]
-    + [0, 0, 0, _UNMEASURED, 0, 0, 0, 0, 0, 0, _UNMEASURED, 0, 0, 0, 0, 0, 0, 0.05]
-)
-TWIST_COVARIANCE = tuple(
-    [0.001, 0, 0, 0, 0, 0, 0, 0.001, 0, 0, 0, 0, 0, 0, _UNMEASURED, 0, 0, 0]
-    + [0, 0, 0, _UNMEASURED, 0, 0, 0, 0, 0, 0, _UNMEASURED, 0, 0, 0, 0, 0, 0, 0.01]
-)
+
+
+def _diagonal(*variances: float) -> tuple[float, ...]:
+    return tuple(variances[row] if row == column else 0.0 for row in range(6) for column in range(6))
+
+
+POSE_COVARIANCE = _diagonal(0.01, 0.01, _UNMEASURED, _UNMEASURED, _UNMEASURED, 0.05)  # m², rad²
+TWIST_COVARIANCE = _diagonal(0.001, 0.001, _UNMEASURED, _UNMEASURED, _UNMEASURED, 0.01)  # (m/s)², (rad/s)²
 # A cliff sensor has no mount in the base's configuration: its point goes on the rim, in front,
 # spread over this arc in bit order (enough for a costmap to stop forward motion).
 CLIFF_ARC_DEG = 90.0
@@ -156,7 +156,9 @@ def quaternion_from_yaw(yaw_rad: float) -> msgs.Quaternion:
     return msgs.Quaternion(0.0, 0.0, math.sin(yaw_rad / 2), math.cos(yaw_rad / 2))
 
 
-def _transform(header: msgs.Header, child: str, x: float, y: float, z: float, yaw: float) -> msgs.TransformStamped:
+def _transform(
+    header: msgs.Header, child: str, x: float, y: float, z: float, yaw: float
+) -> msgs.TransformStamped:
     return msgs.TransformStamped(
         header, child, msgs.Transform(msgs.Vector3(x, y, z), quaternion_from_yaw(yaw))
     )
@@ -230,9 +232,11 @@ class MessageMaker:
         return msgs.TFMessage(
             [
                 _transform(
-                    header, self.range_frame(sensor.slot), *_mount_point(sensor.mount),
+                    header,
+                    self.range_frame(sensor.slot),
+                    *_mount_point(sensor.mount),
                     math.radians(sensor.mount.angle_deg),
-                )  # fmt: skip
+                )
                 for sensor in geometry.sensors
             ]
         )
@@ -296,7 +300,7 @@ class MessageMaker:
             return []
         points = [
             _mount_point(bumper.mount)
-            for bumper, pressed in zip(geometry.bumpers, state.bumpers_pressed)
+            for bumper, pressed in zip(geometry.bumpers, state.bumpers_pressed, strict=False)
             if pressed
         ]
         count = len(geometry.cliff_bits)
@@ -375,22 +379,33 @@ class MessageMaker:
         rejected = counters.cmd_vel_dropped_nonfinite + counters.cmd_vel_dropped_absurd
         statuses = [
             msgs.DiagnosticStatus(
-                health_level, "ctrlbus: base health", _health_message(health, state.connected), hw,
+                health_level,
+                "ctrlbus: base health",
+                _health_message(health, state.connected),
+                hw,
                 health_values,
-            ),  # fmt: skip
+            ),
             msgs.DiagnosticStatus(
-                link_level, "ctrlbus: control bus link", str(link.get("connection", {}).get("state", "")),
-                hw, [msgs.KeyValue(k, v) for k, v in link_pairs],
-            ),  # fmt: skip
+                link_level,
+                "ctrlbus: control bus link",
+                str(link.get("connection", {}).get("state", "")),
+                hw,
+                [msgs.KeyValue(k, v) for k, v in link_pairs],
+            ),
             msgs.DiagnosticStatus(
-                msgs.DIAGNOSTIC_WARN if touching else msgs.DIAGNOSTIC_OK, "ctrlbus: bumpers and cliffs",
-                "contact" if touching else "clear", hw, [msgs.KeyValue(k, v) for k, v in contacts],
-            ),  # fmt: skip
+                msgs.DIAGNOSTIC_WARN if touching else msgs.DIAGNOSTIC_OK,
+                "ctrlbus: bumpers and cliffs",
+                "contact" if touching else "clear",
+                hw,
+                [msgs.KeyValue(k, v) for k, v in contacts],
+            ),
             msgs.DiagnosticStatus(
                 msgs.DIAGNOSTIC_WARN if rejected or command.estop else msgs.DIAGNOSTIC_OK,
-                "ctrlbus: ros2 bridge", "emergency stop latched" if command.estop else command.mode, hw,
+                "ctrlbus: ros2 bridge",
+                "emergency stop latched" if command.estop else command.mode,
+                hw,
                 [msgs.KeyValue(k, v) for k, v in bridge_pairs],
-            ),  # fmt: skip
+            ),
         ]
         return msgs.DiagnosticArray(msgs.Header(msgs.Time.from_seconds(state.stamp_s), ""), statuses)
 
@@ -405,7 +420,9 @@ def _health_message(health: HealthState, connected: bool) -> str:
     return "; ".join(error.message for error in health.errors)
 
 
-def topic_table(names: TopicNames, distro: str, sensor_slots: tuple[int, ...]) -> dict[str, tuple[str, type[IdlStruct], QosKind]]:
+def topic_table(
+    names: TopicNames, distro: str, sensor_slots: tuple[int, ...]
+) -> dict[str, tuple[str, type[IdlStruct], QosKind]]:
     """key -> (ROS 2 name, message type, QoS) for every topic the bridge publishes."""
     range_type: type[IdlStruct] = msgs.RangeHumble if distro == "humble" else msgs.RangeJazzy
     table: dict[str, tuple[str, type[IdlStruct], QosKind]] = {
