@@ -53,6 +53,7 @@ from cyclonedds.topic import Topic  # noqa: E402
 SET_V_PERIOD_MS = 50.0
 GOAL_LATENCY_P99_MS = SET_V_PERIOD_MS + 5.0
 GOAL_CPU_PERCENT = 5.0
+WATCHDOG_S = 0.5  # ctrlbus ros2's default --cmd-vel-timeout
 CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
 
 
@@ -135,18 +136,47 @@ def measure_latency(server: SimServer, port: int, domain: int, samples: int) -> 
             else:
                 latencies.append((seen - written) * 1000.0)
         writer.write(msgs.Twist())
+        watchdog = measure_watchdog(log, writer, max(3, samples // 15))
     finally:
         stop_process(bridge)
     latencies.sort()
     p99 = latencies[min(len(latencies) - 1, int(0.99 * len(latencies)))]
     return {
+        "watchdog_stop": watchdog,
         "samples": len(latencies),
         "not_seen_within_1s": lost,
         "p50_ms": round(statistics.median(latencies), 2),
         "p99_ms": round(p99, 2),
         "max_ms": round(latencies[-1], 2),
         "goal_p99_ms": GOAL_LATENCY_P99_MS,
-        "met": p99 <= GOAL_LATENCY_P99_MS and lost == 0,
+        "met": p99 <= GOAL_LATENCY_P99_MS and lost == 0 and watchdog["met"],
+    }
+
+
+def measure_watchdog(log: SetVLog, writer: DataWriter[Any], samples: int) -> dict[str, Any]:
+    """Drive, go silent: the time from the last cmd_vel written to the SET_V with zero speed."""
+    delays: list[float] = []
+    for _ in range(samples):
+        last = 0.0
+        for _ in range(5):
+            last = time.monotonic()
+            writer.write(msgs.Twist(msgs.Vector3(0.1, 0.0, 0.0), msgs.Vector3()))
+            time.sleep(0.1)
+        end = last + 3.0
+        seen = None
+        while seen is None and time.monotonic() < end:
+            time.sleep(0.001)
+            seen = log.first_after(last + 0.2, 0.0)
+        if seen is not None:
+            delays.append((seen - last) * 1000.0)
+    bound = (WATCHDOG_S * 1000.0) + SET_V_PERIOD_MS
+    return {
+        "samples": len(delays),
+        "of": samples,
+        "min_ms": round(min(delays), 1) if delays else None,
+        "max_ms": round(max(delays), 1) if delays else None,
+        "goal_max_ms": bound,
+        "met": len(delays) == samples and max(delays) <= bound + 5.0,
     }
 
 

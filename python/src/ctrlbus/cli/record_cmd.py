@@ -21,7 +21,7 @@ from functools import partial
 from typing import Any
 
 from ctrlbus.cli.common import add_baud_argument, positive_number, stop_on_signals
-from ctrlbus.cli.ros2_cmd import add_bridge_arguments, maker_from_args
+from ctrlbus.cli.ros2_cmd import add_bridge_arguments, maker_from_args, refuse_existing_bag
 from ctrlbus.core import CoreConfig, CoreRunner, CoreSession, byte_time_for_baud
 from ctrlbus.errors import ProtocolTimeout
 from ctrlbus.link import Link
@@ -68,6 +68,7 @@ def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
     duration = positive_number("--duration", args.duration, allow_zero=True)
     connect_timeout = positive_number("--connect-timeout", args.connect_timeout, allow_zero=True)
     counters = BridgeCounters()
+    refuse_existing_bag(args.rosbag)
     if args.capture is not None:
         from ctrlbus.ros2.capture import CaptureModel, capture_moments
 

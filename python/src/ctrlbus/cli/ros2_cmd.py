@@ -29,7 +29,7 @@ from ctrlbus.link import Link
 from ctrlbus.ports import open_link
 from ctrlbus.ros2.dds import DISTROS, check_domain, dds_config, require_cyclonedds
 
-__all__ = ["DESCRIPTION", "add_bridge_arguments", "register", "run"]
+__all__ = ["DESCRIPTION", "add_bridge_arguments", "maker_from_args", "refuse_existing_bag", "register", "run"]
 
 DEFAULT_CONNECT_TIMEOUT_S = 5.0
 
@@ -146,6 +146,12 @@ def domain_from(value: str | None) -> int:
         raise UsageError(f"the DDS domain wants a whole number 0..232, got {text!r}") from None
 
 
+def refuse_existing_bag(path: str | None) -> None:
+    """A rosbag2 is a new directory: refuse one that exists before anything is opened."""
+    if path is not None and os.path.lexists(path):
+        raise UsageError(f"--rosbag {path}: it exists already (a rosbag2 is written into a new directory)")
+
+
 def maker_from_args(args: argparse.Namespace) -> Any:
     """The MessageMaker of the topic options (needs the extra)."""
     from ctrlbus.ros2.topics import MessageMaker, RangeSpec
@@ -168,6 +174,7 @@ def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
     connect_timeout = positive_number("--connect-timeout", args.connect_timeout, allow_zero=True)
     duration = positive_number("--duration", args.duration, allow_zero=True)
     dds_topic_name("x", args.namespace)  # a bad namespace is refused before anything opens
+    refuse_existing_bag(args.rosbag)
     options = BridgeOptions(
         namespace=args.namespace,
         distro=args.distro,
