@@ -310,6 +310,17 @@ def test_namespace_stamped_humble_and_the_commands(sim, tmp_path: Path) -> None:
             lambda: abs(odom[-1].pose.pose.position.x) < 1e-6 and abs(odom[-1].pose.pose.position.y) < 1e-6,
         )
 
+        # dock: the Core's GO_HOME starts; undock cancels it
+        def mode() -> str:
+            return diagnostic_values(diagnostics[-1], "ctrlbus: ros2 bridge")["mode"]
+
+        node.publish("rt/robot1/dock", msgs.Empty())
+        wait_for("docking", lambda: mode() == "go_home")
+        node.publish("rt/robot1/undock", msgs.Empty())
+        wait_for("docking cancelled", lambda: mode() == "idle")
+        counters = diagnostic_values(diagnostics[-1], "ctrlbus: ros2 bridge")
+        assert (counters["dock_requests"], counters["undock_requests"]) == ("1", "1")
+
         assert check_with_rosbags(node, "humble") > 10
     finally:
         bridge.stop()

@@ -96,14 +96,20 @@ class TopicPump:
         }
         self._next: dict[str, float] = {}
         self._static_geometry: object = None
+        self._tables: dict[tuple[int, ...], dict[str, tuple[str, type[IdlStruct], QosKind]]] = {}
         self.published = 0
 
     def topics(self, sensor_slots: tuple[int, ...] = ()) -> dict[str, tuple[str, type[IdlStruct], QosKind]]:
-        """key -> (absolute ROS 2 name, type, QoS)."""
-        table = topic_table(self.names, self.maker.distro, sensor_slots)
-        return {
-            key: (absolute_name(name, self.namespace), kind, qos) for key, (name, kind, qos) in table.items()
-        }
+        """key -> (absolute ROS 2 name, type, QoS); made once per set of sensor slots."""
+        table = self._tables.get(sensor_slots)
+        if table is None:
+            made = topic_table(self.names, self.maker.distro, sensor_slots)
+            table = {
+                key: (absolute_name(name, self.namespace), kind, qos)
+                for key, (name, kind, qos) in made.items()
+            }
+            self._tables[sensor_slots] = table
+        return table
 
     def next_due(self, now: float) -> float:
         """When something is next due (now, before the first run)."""
