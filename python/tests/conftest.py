@@ -37,6 +37,7 @@ EXTERNAL_MARKERS = {
     "bench": "the benchmark tools (make bench: the bench dependency group, valgrind, the C build)",
     "packaging": "PyPI (the floor setuptools is installed in a venv of its own) and twine",
     "setup": "scripts/setup.sh run in a scratch copy of the repository (a venv of its own)",
+    "ros2": "the ros2 extra (cyclonedds, rosbags) and mcap-ros2-support (scripts/setup.sh full)",
 }
 
 MODULE_MARKERS = {
@@ -56,6 +57,10 @@ MODULE_MARKERS = {
     "test_hostile_link": ("qemu", "c_build"),
     "test_sigrok": ("sigrok",),
     "test_setup": ("setup",),
+    "test_ros2_bridge": ("ros2",),
+    "test_ros2_record": ("ros2",),
+    "test_ros2_loopback": ("ros2",),
+    "test_ros2_cli": ("ros2",),
 }
 
 FIXTURE_MARKERS = {

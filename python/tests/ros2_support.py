@@ -23,23 +23,46 @@ from typing import Any, TypeVar
 
 import pytest
 
+# The extra and the second rosbag2 reader (scripts/setup.sh full installs them); the test modules
+# import these names from here, so that without them they are skipped, not broken.
 pytest.importorskip("cyclonedds", reason="the ros2 extra (scripts/setup.sh full installs it)")
+pytest.importorskip("rosbags", reason="the ros2 extra (scripts/setup.sh full installs it)")
+pytest.importorskip("mcap_ros2", reason="mcap-ros2-support (the dev group) reads the bags back")
 
 from ctrlbus.ros2.dds import LOOPBACK_CONFIG
 
-os.environ["CYCLONEDDS_URI"] = LOOPBACK_CONFIG
+os.environ["CYCLONEDDS_URI"] = LOOPBACK_CONFIG  # before any participant exists
 
 from base_harness import Process
+from cyclonedds.builtin import BuiltinDataReader, BuiltinTopicDcpsPublication, BuiltinTopicDcpsSubscription
 from cyclonedds.core import Listener
 from cyclonedds.domain import Domain, DomainParticipant
 from cyclonedds.idl import IdlStruct
 from cyclonedds.pub import DataWriter
 from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+from rosbags.interfaces import ConnectionExtRosbag2
+from rosbags.rosbag2 import Reader
+from rosbags.typesys import Stores, get_typestore
 
 from ctrlbus.ros2 import msgs
 from ctrlbus.ros2.dds import DEFAULT_QOS, SENSOR_QOS, STATIC_QOS, TF_QOS, QosKind, dds_config, qos_for
 from ctrlbus.sim.server import SimServer, SimSettings
+
+# re-exported for the test modules (see above)
+__all__ = [
+    "BuiltinDataReader",
+    "BuiltinTopicDcpsPublication",
+    "BuiltinTopicDcpsSubscription",
+    "ConnectionExtRosbag2",
+    "DecoderFactory",
+    "Reader",
+    "Stores",
+    "get_typestore",
+    "make_reader",
+]
 
 WAIT_S = 20.0  # generous: discovery and a busy 2-core machine
 _domains = itertools.count()

@@ -15,10 +15,14 @@ import time
 from pathlib import Path
 
 import pytest
-from cyclonedds.builtin import BuiltinDataReader, BuiltinTopicDcpsPublication, BuiltinTopicDcpsSubscription
 from ros2_support import (
+    BuiltinDataReader,
+    BuiltinTopicDcpsPublication,
+    BuiltinTopicDcpsSubscription,
     Node,
+    Stores,
     diagnostic_values,
+    get_typestore,
     same_value,
     sim_port,
     start_bridge,
@@ -28,7 +32,6 @@ from ros2_support import (
     wait_for,
     yaw_of,
 )
-from rosbags.typesys import Stores, get_typestore
 
 from ctrlbus.kinematics import relative_pose
 from ctrlbus.ros2 import msgs

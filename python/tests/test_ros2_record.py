@@ -14,12 +14,22 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from mcap.reader import make_reader
-from mcap_ros2.decoder import DecoderFactory
-from ros2_support import Node, same_value, sim_port, start_bridge, start_sim, twist, unique_domain, wait_for
-from rosbags.interfaces import ConnectionExtRosbag2
-from rosbags.rosbag2 import Reader
-from rosbags.typesys import Stores, get_typestore
+from ros2_support import (
+    ConnectionExtRosbag2,
+    DecoderFactory,
+    Node,
+    Reader,
+    Stores,
+    get_typestore,
+    make_reader,
+    same_value,
+    sim_port,
+    start_bridge,
+    start_sim,
+    twist,
+    unique_domain,
+    wait_for,
+)
 from test_capture_replay import _Recorder
 
 from ctrlbus.capture import CaptureWriter, Direction
