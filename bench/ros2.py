@@ -242,7 +242,7 @@ def main() -> int:
     parser.add_argument("--seconds", type=float, default=30.0, help="CPU measuring window (default 30)")
     parser.add_argument("--out", type=Path, default=REPO / "bench" / "results" / "ros2.json")
     args = parser.parse_args()
-    domain = 1 + os.getpid() % 230
+    domain = 1 + os.getpid() % 101  # ports below the ephemeral range
     Domain(domain, LOOPBACK_CONFIG)
     with SimServer.open(SimSettings(seed=1), listen="127.0.0.1:0") as server:
         server.start()
