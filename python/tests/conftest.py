@@ -61,6 +61,7 @@ MODULE_MARKERS = {
     "test_ros2_record": ("ros2",),
     "test_ros2_loopback": ("ros2",),
     "test_ros2_cli": ("ros2",),
+    "test_ros2_messages": ("ros2",),
 }
 
 FIXTURE_MARKERS = {
