@@ -14,6 +14,9 @@ new test in those modules is marked without anyone remembering to.
 
 from __future__ import annotations
 
+import importlib.util
+from pathlib import Path
+
 import pytest
 from hypothesis import HealthCheck, settings
 
@@ -67,6 +70,29 @@ MODULE_MARKERS = {
 FIXTURE_MARKERS = {
     "posix_base": ("c_build",),
 }
+
+
+# Modules that import a marker's tools at the top, so that they cannot even be collected without
+# them: skipped at collection when the tools are missing and the run deselects their marker.
+IMPORTS_AT_THE_TOP = {"ros2": ("cyclonedds", "rosbags", "mcap_ros2")}
+
+
+def pytest_ignore_collect(collection_path: Path, config: pytest.Config) -> bool | None:
+    markers = MODULE_MARKERS.get(collection_path.stem, ())
+    expression = config.getoption("markexpr") or ""
+    for marker in markers:
+        modules = IMPORTS_AT_THE_TOP.get(marker, ())
+        deselected = "not external" in expression or f"not {marker}" in expression
+        if deselected and any(_missing(name) for name in modules):
+            return True
+    return None
+
+
+def _missing(module: str) -> bool:
+    try:
+        return importlib.util.find_spec(module) is None
+    except ValueError:  # a module set to None in sys.modules (hidden on purpose)
+        return True
 
 
 def pytest_configure(config: pytest.Config) -> None:

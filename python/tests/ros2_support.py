@@ -6,7 +6,9 @@ Every participant here and in the bridge processes gets the loopback-only config
 multicast, the one peer 127.0.0.1): CYCLONEDDS_URI is set when this module is imported, before
 any participant exists, and inherited by the processes; each test uses its own domain id.
 
-Not a test module itself; the test_ros2_*.py modules import it.
+Not a test module itself; the test_ros2_*.py modules import it, and import the third-party names
+they need from here (the ros2 extra, mcap_ros2): without them those modules are not collected
+under `-m "not external"` (conftest.py) and fail in `make test`, which installs them.
 """
 
 from __future__ import annotations
@@ -20,14 +22,6 @@ from collections.abc import Callable, Iterator
 from dataclasses import fields, is_dataclass
 from pathlib import Path
 from typing import Any, TypeVar
-
-import pytest
-
-# The extra and the second rosbag2 reader (scripts/setup.sh full installs them); the test modules
-# import these names from here, so that without them they are skipped, not broken.
-pytest.importorskip("cyclonedds", reason="the ros2 extra (scripts/setup.sh full installs it)")
-pytest.importorskip("rosbags", reason="the ros2 extra (scripts/setup.sh full installs it)")
-pytest.importorskip("mcap_ros2", reason="mcap-ros2-support (the dev group) reads the bags back")
 
 from ctrlbus.ros2.dds import LOOPBACK_CONFIG
 
