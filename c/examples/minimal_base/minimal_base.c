@@ -87,7 +87,7 @@ static int32_t connect_info(void *context, ctrlbus_connect_base_answer_t *out)
 
 /* GET_BASE_CONF: round (type 0), radius 170 mm, two-wheel differential (motor type 0), no sensor,
  * no bumper. The stack streams it from here, field by field. */
-#define BASE_RADIUS_MM_Q8 (170u * 256u)
+#define BASE_RADIUS_MM_Q8 ((uint32_t)CTRLBUS_Q8(170))
 #if MINIMAL_BASE_CONF_AT_INIT
 static ctrlbus_get_base_conf_answer_t base_conf; /* filled in by main() */
 #else

@@ -108,4 +108,59 @@
 #define CTRLBUS_DEFAULT_PROFILE CTRLBUS_PROFILE_REFERENCE
 #endif
 
+/* The effective switches, checked at link time. The library defines one function whose name spells
+ * the switches it was compiled with, e.g. ctrlbus_config_h1_q1_l1_p1_a1_m1_d2 (health, command
+ * queue, limits, sdk2020, conf_adv, master codecs: 0 or 1; the decoder level: 0, 1 or 2), and
+ * CTRLBUS_CONFIG_CHECK(), a statement for the firmware's start-up code, calls the one this
+ * translation unit's switches name. When the library archive was built with other switches (a
+ * config header not applied, a -D missing in one build), the link fails with "undefined reference
+ * to ctrlbus_config_...", naming the switches the firmware expected. Cost: a call to a function
+ * that returns 0 (a few bytes); nothing at all when not used (its own section). */
+#if CTRLBUS_CONFIG_HEALTH
+#define CTRLBUS_CONFIG_BIT_H_ 1
+#else
+#define CTRLBUS_CONFIG_BIT_H_ 0
+#endif
+#if CTRLBUS_CONFIG_COMMAND_QUEUE
+#define CTRLBUS_CONFIG_BIT_Q_ 1
+#else
+#define CTRLBUS_CONFIG_BIT_Q_ 0
+#endif
+#if CTRLBUS_CONFIG_LIMITS
+#define CTRLBUS_CONFIG_BIT_L_ 1
+#else
+#define CTRLBUS_CONFIG_BIT_L_ 0
+#endif
+#if CTRLBUS_CONFIG_PROFILE_SDK2020
+#define CTRLBUS_CONFIG_BIT_P_ 1
+#else
+#define CTRLBUS_CONFIG_BIT_P_ 0
+#endif
+#if CTRLBUS_CONFIG_CONF_ADV
+#define CTRLBUS_CONFIG_BIT_A_ 1
+#else
+#define CTRLBUS_CONFIG_BIT_A_ 0
+#endif
+#if CTRLBUS_CONFIG_MASTER_CODECS
+#define CTRLBUS_CONFIG_BIT_M_ 1
+#else
+#define CTRLBUS_CONFIG_BIT_M_ 0
+#endif
+#if CTRLBUS_DECODER_FAST == 0
+#define CTRLBUS_CONFIG_BIT_D_ 0
+#elif CTRLBUS_DECODER_FAST == 1
+#define CTRLBUS_CONFIG_BIT_D_ 1
+#else
+#define CTRLBUS_CONFIG_BIT_D_ 2
+#endif
+#define CTRLBUS_CONFIG_NAME_(h, q, l, p, a, m, d) ctrlbus_config_h##h##_q##q##_l##l##_p##p##_a##a##_m##m##_d##d
+#define CTRLBUS_CONFIG_NAME(h, q, l, p, a, m, d) CTRLBUS_CONFIG_NAME_(h, q, l, p, a, m, d)
+/* The name of the function for this translation unit's switches. */
+#define CTRLBUS_CONFIG_SYMBOL                                                                      \
+    CTRLBUS_CONFIG_NAME(CTRLBUS_CONFIG_BIT_H_, CTRLBUS_CONFIG_BIT_Q_, CTRLBUS_CONFIG_BIT_L_,       \
+                        CTRLBUS_CONFIG_BIT_P_, CTRLBUS_CONFIG_BIT_A_, CTRLBUS_CONFIG_BIT_M_,       \
+                        CTRLBUS_CONFIG_BIT_D_)
+/* Links only against a library built with the same switches (see above). Main loop, once. */
+#define CTRLBUS_CONFIG_CHECK() ((void)CTRLBUS_CONFIG_SYMBOL())
+
 #endif
