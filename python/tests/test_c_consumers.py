@@ -169,8 +169,8 @@ def test_config_header_set_as_a_normal_variable_applies_on_the_first_configure(t
     output = configure_and_build(
         tmp_path, CONSUMER, f"-DCTRLBUS_CHECKOUT={REPO}", "-DCONSUMER_CONFIG_HEADER=ON", NO_PYTHON
     )
-    assert "CTRLBUS_CONFIG_HEADER" not in (tmp_path / "CMakeCache.txt").read_text(), output
     run(tmp_path / "consumer")
+    assert "CTRLBUS_CONFIG_HEADER" not in (tmp_path / "CMakeCache.txt").read_text(), output
     assert_consumer_only(tmp_path)
 
 
