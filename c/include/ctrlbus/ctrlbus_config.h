@@ -101,7 +101,7 @@
 
 /* The profile a config whose `profile` is left zero gets (ctrlbus_base_profile_t, base.h). Define
  * it for the whole build, e.g. -DCTRLBUS_DEFAULT_PROFILE=CTRLBUS_PROFILE_SDK2020, to build a
- * firmware for the vendor's 2020 master SDK without touching its code (c/firmware builds its
+ * firmware for the vendor's 2020 master SDK without touching its code (c/ports builds mps2-an385's
  * sdk2020 image so). Zero is CTRLBUS_PROFILE_REFERENCE, so with the sdk2020 default the reference
  * profile cannot be chosen at run time. Size effect: none. */
 #ifndef CTRLBUS_DEFAULT_PROFILE
