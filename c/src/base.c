@@ -294,25 +294,6 @@ void ctrlbus_base_counters(const ctrlbus_base_t *base, ctrlbus_base_counters_t *
     out->rx_dropped = base != NULL ? base->rx_dropped : 0u;
 }
 
-uint16_t ctrlbus_base_missing_handlers(const ctrlbus_base_t *base)
-{
-    const ctrlbus_base_config_t *config = base != NULL ? base->config : NULL;
-    if (config == NULL) {
-        return 0u;
-    }
-    uint16_t missing = 0u;
-    missing |= config->connect_info == NULL ? CTRLBUS_BASE_NEEDS_CONNECT_INFO : 0u;
-    missing |= config->base_conf == NULL ? CTRLBUS_BASE_NEEDS_BASE_CONF : 0u;
-    missing |= config->status == NULL ? CTRLBUS_BASE_NEEDS_STATUS : 0u;
-    missing |= config->motor_data == NULL ? CTRLBUS_BASE_NEEDS_MOTOR_DATA : 0u;
-    missing |= config->sensor_data == NULL ? CTRLBUS_BASE_NEEDS_SENSOR_DATA : 0u;
-    missing |= config->bumper_data == NULL ? CTRLBUS_BASE_NEEDS_BUMPER_DATA : 0u;
-    missing |= config->charger_data == NULL ? CTRLBUS_BASE_NEEDS_CHARGER_DATA : 0u;
-    missing |= config->set_wheel_speeds == NULL ? CTRLBUS_BASE_NEEDS_SET_WHEEL_SPEEDS : 0u;
-    missing |= config->set_velocity == NULL ? CTRLBUS_BASE_NEEDS_SET_VELOCITY : 0u;
-    return missing;
-}
-
 /* ---- motion safety: watchdog and limits ----------------------------------------------------- */
 
 static void stop_motors(const ctrlbus_base_t *base)

@@ -388,8 +388,25 @@ int32_t ctrlbus_base_init(ctrlbus_base_t *base, const ctrlbus_base_config_t *con
 #define CTRLBUS_BASE_NEEDS_SET_VELOCITY 0x100u
 
 /* Which mandatory handlers base's config lacks (CTRLBUS_BASE_NEEDS_* bits; 0 for a NULL base or
- * one not initialised). Not ISR-safe. Cost: O(1). */
-uint16_t ctrlbus_base_missing_handlers(const ctrlbus_base_t *base);
+ * one not initialised). Inline, so that a firmware that never asks pays nothing for it.
+ * ISR-safe. Cost: O(1). */
+static inline uint16_t ctrlbus_base_missing_handlers(const ctrlbus_base_t *base)
+{
+    const ctrlbus_base_config_t *config = base != NULL ? base->config : NULL;
+    unsigned missing = 0u;
+    if (config != NULL) {
+        missing |= config->connect_info == NULL ? CTRLBUS_BASE_NEEDS_CONNECT_INFO : 0u;
+        missing |= config->base_conf == NULL ? CTRLBUS_BASE_NEEDS_BASE_CONF : 0u;
+        missing |= config->status == NULL ? CTRLBUS_BASE_NEEDS_STATUS : 0u;
+        missing |= config->motor_data == NULL ? CTRLBUS_BASE_NEEDS_MOTOR_DATA : 0u;
+        missing |= config->sensor_data == NULL ? CTRLBUS_BASE_NEEDS_SENSOR_DATA : 0u;
+        missing |= config->bumper_data == NULL ? CTRLBUS_BASE_NEEDS_BUMPER_DATA : 0u;
+        missing |= config->charger_data == NULL ? CTRLBUS_BASE_NEEDS_CHARGER_DATA : 0u;
+        missing |= config->set_wheel_speeds == NULL ? CTRLBUS_BASE_NEEDS_SET_WHEEL_SPEEDS : 0u;
+        missing |= config->set_velocity == NULL ? CTRLBUS_BASE_NEEDS_SET_VELOCITY : 0u;
+    }
+    return (uint16_t)missing;
+}
 
 /* Puts received bytes into the ring for the next ctrlbus_base_poll(). Returns how many it took
  * (0..len): bytes that find the ring full are dropped and counted in rx_dropped (a caller that can
