@@ -180,10 +180,12 @@ def test_config_mismatch_between_library_and_firmware_fails_the_link(
     """The library installed with the default switches; a firmware compiled with one off."""
     result = subprocess.run(
         [tool("cc"), "-std=c99", "-DCTRLBUS_CONFIG_HEALTH=0", f"-I{installed_prefix / 'include'}",
-         str(CONSUMER / "main.c"), "-o", str(tmp_path / "consumer"), str(installed_prefix / "lib" / "libctrlbus.a")],
+         str(CONSUMER / "main.c"), "-o", str(tmp_path / "consumer"),
+         str(installed_prefix / "lib" / "libctrlbus.a")],
         capture_output=True, text=True, timeout=120,
     )  # fmt: skip
-    assert result.returncode != 0 and "undefined reference to `ctrlbus_config_h0_" in result.stderr, result.stderr
+    expected = "undefined reference to `ctrlbus_config_h0_"
+    assert result.returncode != 0 and expected in result.stderr, result.stderr
 
 
 def readme_fetchcontent_recipe() -> str:
@@ -192,7 +194,7 @@ def readme_fetchcontent_recipe() -> str:
     blocks = re.findall(r"```cmake\n(.*?)```", readme, re.S)
     recipes = [block for block in blocks if "FetchContent_Declare(ctrlbus" in block]
     assert len(recipes) == 1, blocks
-    return recipes[0]
+    return str(recipes[0])
 
 
 def test_readme_fetchcontent_recipe_as_written(tmp_path: Path) -> None:
@@ -214,7 +216,8 @@ def test_readme_fetchcontent_recipe_as_written(tmp_path: Path) -> None:
     recipe_file.write_text(recipe.replace(published, f"file://{clone}"))
     build = tmp_path / "build"
     configure_and_build(
-        build, CONSUMER, "-DCONSUMER_GETS_CTRLBUS=fetchcontent", f"-DCONSUMER_FETCHCONTENT_RECIPE={recipe_file}",
+        build, CONSUMER, "-DCONSUMER_GETS_CTRLBUS=fetchcontent",
+        f"-DCONSUMER_FETCHCONTENT_RECIPE={recipe_file}",
         f"-DCONSUMER_EXPECT_VERSION={header_version()}", NO_PYTHON,
     )  # fmt: skip
     source = build / "_deps" / "ctrlbus-src"
