@@ -96,7 +96,7 @@ demo:
 	@case "$(DEMO_BASE)" in \
 	  ""|sim) scripts/setup.sh demo ;; \
 	  c) scripts/setup.sh c && $(MAKE) --no-print-directory c-build-only ;; \
-	  qemu) scripts/setup.sh qemu && $(MAKE) --no-print-directory ports-only ;; \
+	  qemu) scripts/setup.sh qemu && $(MAKE) --no-print-directory -C c/ports O=$(CURDIR)/$(BUILD)/ports mps2_an385 ;; \
 	  *) scripts/setup.sh demo ;; \
 	esac
 	@$(PY) -m ctrlbus demo $(DEMO_ARGS)
