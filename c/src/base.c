@@ -8,10 +8,10 @@
 
 #include "codec.h"
 
-/* CTRLBUS_CONFIG_CONST_IN_FLASH: base_conf and binary_config are read through CTRLBUS_READ_CONST
+/* CTRLBUS_CONST_IN_FLASH: base_conf and binary_config are read through CTRLBUS_READ_CONST
  * (ctrlbus_config.h), in wire order straight from memory, as the codec does on a little-endian
  * CPU. */
-#if CTRLBUS_CONFIG_CONST_IN_FLASH
+#if CTRLBUS_CONST_IN_FLASH
 #if !defined(CTRLBUS_READ_CONST) && defined(__AVR__)
 #define CTRLBUS_READ_CONST(dst, src, size) memcpy_P((dst), (src), (size))
 #define READ_CONST_BYTE(address) pgm_read_byte(address) /* the same, inline */
@@ -30,7 +30,7 @@ static uint8_t read_const_byte(const uint8_t *address)
 #endif
 #if !(defined(__BYTE_ORDER__) && defined(__ORDER_LITTLE_ENDIAN__) &&                              \
       __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__)
-#error "CTRLBUS_CONFIG_CONST_IN_FLASH needs a little-endian CPU"
+#error "CTRLBUS_CONST_IN_FLASH needs a little-endian CPU"
 #endif
 #endif
 
@@ -598,12 +598,12 @@ typedef struct {
     const void *source;
     ctrlbus_codec_layout_t layout;
     int32_t size; /* negative: a check refused the handler's struct (0x8002) */
-#if CTRLBUS_CONFIG_CONST_IN_FLASH
+#if CTRLBUS_CONST_IN_FLASH
     bool in_flash; /* source is the application's constant, read through CTRLBUS_READ_CONST */
 #endif
 } reply_t;
 
-#if CTRLBUS_CONFIG_CONST_IN_FLASH
+#if CTRLBUS_CONST_IN_FLASH
 /* ctrlbus_get_base_conf_answer_size() for an answer in program memory: its two counts read. */
 static int32_t base_conf_size_in_flash(const ctrlbus_get_base_conf_answer_t *conf)
 {
@@ -700,7 +700,7 @@ static NOINLINE uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t
         if (config->base_conf != NULL) {
             result = CTRLBUS_OK; /* streamed from the application's struct: no copy */
             reply->source = config->base_conf;
-#if CTRLBUS_CONFIG_CONST_IN_FLASH
+#if CTRLBUS_CONST_IN_FLASH
             reply->in_flash = true;
             size = base_conf_size_in_flash(config->base_conf);
 #else
@@ -714,7 +714,7 @@ static NOINLINE uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t
         if (config->binary_config != NULL && config->binary_config_size != 0u) {
             result = CTRLBUS_OK;
             reply->source = config->binary_config;
-#if CTRLBUS_CONFIG_CONST_IN_FLASH
+#if CTRLBUS_CONST_IN_FLASH
             reply->in_flash = true;
 #endif
             size = (int32_t)config->binary_config_size; /* init checked it */
@@ -843,7 +843,7 @@ static NOINLINE void send(const ctrlbus_base_config_t *config, uint8_t cmd, bool
     sink.context = config->write_context;
     size_t size = (size_t)reply->size;
     ctrlbus_sink_start(&sink, cmd, size, is_long || size > CTRLBUS_STANDARD_PAYLOAD_MAX);
-#if CTRLBUS_CONFIG_CONST_IN_FLASH
+#if CTRLBUS_CONST_IN_FLASH
     if (reply->in_flash) {
         put_const_fields(&sink, reply->layout, reply->source, size);
     } else
@@ -863,7 +863,7 @@ static NOINLINE void answer(ctrlbus_base_t *base, ctrlbus_rx_t rx, const ctrlbus
     reply_t reply;
     reply.source = &reply.out;
     reply.layout = NULL; /* run_request sets it (and size) only when it returns 0 */
-#if CTRLBUS_CONFIG_CONST_IN_FLASH
+#if CTRLBUS_CONST_IN_FLASH
     reply.in_flash = false;
 #endif
     uint8_t cmd = CTRLBUS_CMD_OK;
@@ -890,7 +890,7 @@ static NOINLINE void answer(ctrlbus_base_t *base, ctrlbus_rx_t rx, const ctrlbus
         reply.out.bytes[1] = (uint8_t)(error >> 8);
         reply.source = reply.out.bytes;
         reply.size = CTRLBUS_ERROR_ANSWER_SIZE;
-#if CTRLBUS_CONFIG_CONST_IN_FLASH
+#if CTRLBUS_CONST_IN_FLASH
         reply.in_flash = false; /* a refused base_conf */
 #endif
     }

@@ -25,8 +25,8 @@
 #endif
 /* Where const data stays in flash (ARM, RISC-V) the GET_BASE_CONF constant costs no RAM. avr-gcc
  * copies const data into RAM unless it is PROGMEM, which the stack reads with memcpy_P when the
- * library is built with CTRLBUS_CONFIG_CONST_IN_FLASH (ctrlbus_config.h): the Uno's build does. */
-#if CTRLBUS_CONFIG_CONST_IN_FLASH && defined(__AVR__)
+ * library is built with CTRLBUS_CONST_IN_FLASH (ctrlbus_config.h): the Uno's build does. */
+#if CTRLBUS_CONST_IN_FLASH && defined(__AVR__)
 #include <avr/pgmspace.h>
 #define MINIMAL_BASE_IN_FLASH PROGMEM
 #else

@@ -246,7 +246,7 @@ typedef struct {
     uint8_t *command_queue;
     uint8_t command_queue_size;
     /* GET_BASE_CONF_ADV: the binary configuration blob, streamed from here (so it may live in
-     * flash). NULL or size 0: the request is answered 0x8000 and the Core asks GET_BASE_CONF. */
+     * flash; on AVR, PROGMEM with CTRLBUS_CONST_IN_FLASH). NULL or size 0: the request is answered 0x8000 and the Core asks GET_BASE_CONF. */
     const uint8_t *binary_config;
     uint16_t binary_config_size; /* at most 65534 */
     /* Optional decoder counters (frame.h), counted into when not NULL. */
@@ -282,7 +282,8 @@ typedef struct {
     /* Mandatory. GET_BASE_CONF: not a handler but the answer itself, read field by field while it
      * is written (264 bytes that never sit on the stack). The application owns it and may change
      * it between polls; NULL: not supported (0x8000). A struct its check refuses (a count over 8)
-     * is answered 0x8002. sensor_num and bumper_num (0..8) say how many of the sensor_data
+     * is answered 0x8002. With CTRLBUS_CONST_IN_FLASH (ctrlbus_config.h) it is read as program
+     * memory: on AVR a PROGMEM constant, which then costs no RAM. sensor_num and bumper_num (0..8) say how many of the sensor_data
      * channels and bumper_data bits are real; positions and radius in mm Q8 (CTRLBUS_Q8()). */
     const ctrlbus_get_base_conf_answer_t *base_conf;
     /* Mandatory. GET_BASE_STATUS: battery percent, charging and docking state, error bits. */

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT */
-/* The base stack built with CTRLBUS_CONFIG_CONST_IN_FLASH (ctrlbus/ctrlbus_config.h), on the host,
+/* The base stack built with CTRLBUS_CONST_IN_FLASH (ctrlbus/ctrlbus_config.h), on the host,
  * where CTRLBUS_READ_CONST is memcpy: GET_BASE_CONF must go out byte for byte as the codec writes
  * it (ctrlbus_get_base_conf_answer_write()), a struct with a count over 8 must be answered 0x8002,
  * and the 0x21 blob must go out as it is. The Uno's minimal base runs the same path from flash
