@@ -41,20 +41,20 @@ ports-only firmware-only:
 	@$(MAKE) --no-print-directory -C c/ports O=$(CURDIR)/$(BUILD)/ports
 
 c-test: c-build
-	@ctest --test-dir $(BUILD)/c --output-on-failure -j $(JOBS)
+	@cd $(BUILD)/c && ctest --output-on-failure -j $(JOBS)
 
 # The C tests again with every feature switch of ctrlbus_config.h off (c/tests/config_all_off.h).
 c-test-config-off: setup
 	@cmake -S c -B $(BUILD)/c-config-off -G Ninja -DCMAKE_BUILD_TYPE=Debug \
 	  -DCTRLBUS_CONFIG_HEADER=$(CURDIR)/c/tests/config_all_off.h >/dev/null
 	@cmake --build $(BUILD)/c-config-off -j $(JOBS)
-	@ctest --test-dir $(BUILD)/c-config-off --output-on-failure -j $(JOBS)
+	@cd $(BUILD)/c-config-off && ctest --output-on-failure -j $(JOBS)
 
 # The same tests under AddressSanitizer + UndefinedBehaviorSanitizer.
 c-test-asan: setup
 	@cmake -S c -B $(BUILD)/c-asan -G Ninja -DCMAKE_BUILD_TYPE=Debug -DCTRLBUS_SANITIZE=ON >/dev/null
 	@cmake --build $(BUILD)/c-asan -j $(JOBS)
-	@ctest --test-dir $(BUILD)/c-asan --output-on-failure -j $(JOBS)
+	@cd $(BUILD)/c-asan && ctest --output-on-failure -j $(JOBS)
 
 lint: setup
 	@cd python && ../$(VENV)/bin/ruff check src tests && ../$(VENV)/bin/ruff format --check src tests
