@@ -170,6 +170,7 @@ def test_config_header_set_as_a_normal_variable_applies_on_the_first_configure(t
         tmp_path, CONSUMER, f"-DCTRLBUS_CHECKOUT={REPO}", "-DCONSUMER_CONFIG_HEADER=ON", NO_PYTHON
     )
     run(tmp_path / "consumer")
+    assert f"ctrlbus: build-time switches from {CONSUMER / 'consumer_config.h'}" in output, output
     assert "CTRLBUS_CONFIG_HEADER" not in (tmp_path / "CMakeCache.txt").read_text(), output
     assert_consumer_only(tmp_path)
 
