@@ -23,7 +23,8 @@ that what a Core sees follows from it rather than from a table of cases:
 - the schedule (as on the refbase harness, whose timing the figures here were calibrated on): a
   pass takes 20 µs, then the loop sleeps until the next byte in or out, or 1 ms; a byte due
   during a pass is handled at its end;
-- for `boot_s` after power-on the loop does not run (the reference beeps); the receiver works.
+- power-on: for its first 100 ms the firmware has no receiver (bytes are lost); then the receiver
+  works, but until `boot_s` the main loop does not run (the reference beeps).
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ from ctrlbus.messages import Cmd, decode_request
 __all__ = [
     "BOOT_SILENCE_S",
     "CHECKSUM_BIT",
+    "DEAF_S",
     "FRAME_READY_BIT",
     "IDLE_WAKE_S",
     "MAIN_LOOP_PASS_S",
@@ -58,10 +60,11 @@ CHECKSUM_BIT = 0x40
 FRAME_READY_BIT = 0x80
 _ERROR_BITS = NOT_SYNCED_BIT | TOO_LONG_BIT | CHECKSUM_BIT
 REFERENCE_RX_BUFFER = 512
-BOOT_SILENCE_S = 1.9  # power-on beeps before the main loop runs (reference §4)
+BOOT_SILENCE_S = 1.90012  # set-up (0.12 ms after the 100 ms supply wait) and 1.8 s of beeps before the main loop runs
 STARTUP_BATTERY_S = 3.0  # 0 % and a low-battery error until the first battery reading
 MAIN_LOOP_PASS_S = 20e-6  # one pass of the main loop (refbase --pass-us)
 IDLE_WAKE_S = 1e-3  # an idle loop looks again this long after a pass (refbase --idle-us)
+DEAF_S = 100.12e-3  # after power-on it waits for its supply, then sets up its board, then the UART
 DEFAULT_BYTE_TIME_S = 10 / 115200
 MAX_FIXED_REQUEST = 24  # longer than any control-bus request with a fixed layout (SET_BASE_MOTOR: 17)
 _DMA_TAIL_BYTES = 2  # the DMA is done when the last byte enters the data register: 2 bytes early
@@ -136,6 +139,7 @@ class ReferenceReceiver:
         self._pending: deque[tuple[float, int]] = deque()  # bytes on their way in: (due, byte)
         self._line_in_free = float("-inf")  # when the last byte fed has fully arrived
         self._clock = now  # everything before this has been simulated
+        self._deaf_until = now + DEAF_S  # bytes before then are lost, even halfway through a frame
         self._loop_from = now + self.boot_s
         self._next_pass_from = self._loop_from  # the loop may wake from then on...
         self._serviced = now  # ...and has seen every event up to then
@@ -174,7 +178,8 @@ class ReferenceReceiver:
         while self._pending and self._pending[0][0] <= until + _TIE_S:
             due, byte = self._pending.popleft()
             self._clock = max(self._clock, due)
-            self._receive(byte)
+            if due > self._deaf_until + _TIE_S:
+                self._receive(byte)
 
     def _frame_length(self) -> int:
         buf = self._buffer
