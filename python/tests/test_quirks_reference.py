@@ -36,7 +36,9 @@ GARBAGE = bytes(range(1, 17))  # no 0x10 or 0x50 among them
 # A long frame announcing 597 bytes (more than the 512-byte buffer holds), 600 bytes in all.
 LONG_600_ZEROS = bytes([0x50]) + struct.pack("<H", 597) + bytes([0xF8, 0x30]) + bytes(595)
 # The same with payload bytes 0x20, 0x21, ...: some of them are 0x10 or 0x50 (false frame starts).
-LONG_600_COUNTING = (bytes([0x50]) + struct.pack("<H", 597) + bytes([0xF8, 0x30]) + bytes(range(0x20, 0xE8)) * 3)[:600]
+LONG_600_COUNTING = (
+    bytes([0x50]) + struct.pack("<H", 597) + bytes([0xF8, 0x30]) + bytes(range(0x20, 0xE8)) * 3
+)[:600]
 
 Write = tuple[str, bytes]  # (time as in a refbase script, bytes)
 
@@ -68,8 +70,16 @@ SEQUENCES: list[tuple[str, list[Write], list[str]]] = [
     ("LEN=0 re-runs GET_BASE_STATUS", [("2500", STATUS), ("+50", LEN0)], ["OK2", "OK2"]),
     ("LEN=0 re-runs SET_V", [("2500", SET_V), ("+50", LEN0)], ["OK13", "OK13"]),
     ("request split, 5 s between", [("2500", STATUS[:2]), ("+5000", STATUS[2:])], ["OK2"]),
-    ("request byte by byte, 1 ms apart", [("2500", STATUS[:1])] + [("+1", STATUS[i : i + 1]) for i in range(1, 5)], ["OK2"]),
-    ("10 FF swallows the requests behind it", [("2500", bytes.fromhex("10 FF")), ("+10", STATUS), ("+10", STATUS)], []),
+    (
+        "request byte by byte, 1 ms apart",
+        [("2500", STATUS[:1])] + [("+1", STATUS[i : i + 1]) for i in range(1, 5)],
+        ["OK2"],
+    ),
+    (
+        "10 FF swallows the requests behind it",
+        [("2500", bytes.fromhex("10 FF")), ("+10", STATUS), ("+10", STATUS)],
+        [],
+    ),
     (
         "10 FF, a status, then a flushing SYNC",
         [("2500", bytes.fromhex("10 FF")), ("+10", STATUS), ("+10", encode(0x00, bytes(251)))],
@@ -83,14 +93,22 @@ SEQUENCES: list[tuple[str, list[Write], list[str]]] = [
     ("a request 0.2 ms after the previous", [("2500", STATUS), ("+0.2", STATUS)], ["OK2", "OK2"]),
     ("status, then 3 garbage bytes", [("2500", STATUS + GARBAGE[:3])], ["OK2", "E0010", "E0010"]),
     ("status in a long frame", [("2500", encode(0xF8, bytes([0x30]), long=True))], ["OK2"]),
-    ("long LEN 510 does not fit", [("2500", bytes([0x50, 0xFE, 0x01]) + bytes(20))], ["E0020"] + ["E0010"] * 4),
+    (
+        "long LEN 510 does not fit",
+        [("2500", bytes([0x50, 0xFE, 0x01]) + bytes(20))],
+        ["E0020"] + ["E0010"] * 4,
+    ),
     ("27 bytes 01..1B (one false start at 0x10)", [("2500", bytes(range(1, 28)))], ["E0010"] * 6),
     (
         "600-byte long frame with false starts in it, then a status",
         [("2500", LONG_600_COUNTING), ("+100", STATUS)],
         ["E0020"] + ["E0010"] * 8 + ["E0030"] + ["E0010"] * 56 + ["E0030"] + ["E0010"] * 21 + ["OK2"],
     ),
-    ("4 garbage bytes + status, resent 20 ms later", [("2500", GARBAGE[:4] + STATUS), ("+20", STATUS)], ["E0010"] * 4 + ["OK2"]),
+    (
+        "4 garbage bytes + status, resent 20 ms later",
+        [("2500", GARBAGE[:4] + STATUS), ("+20", STATUS)],
+        ["E0010"] * 4 + ["OK2"],
+    ),
     # Power-on: deaf for about 100 ms, then the main loop starts 1.9 s after power-on.
     ("status at 0 ms (nothing hears it)", [("0", STATUS)], []),
     ("status cut by the end of the deaf start", [("100", STATUS)], ["E0010"]),
@@ -100,7 +118,11 @@ SEQUENCES: list[tuple[str, list[Write], list[str]]] = [
     ("bad checksum during the beeps", [("1000", BAD_SET_V)], ["E00C0"]),
     ("status, then CONNECT_BASE during the beeps", [("100", STATUS), ("500", CONNECT)], ["E0090"]),
     ("garbage, then status during the beeps", [("100", GARBAGE[:2]), ("500", STATUS)], ["E0090"]),
-    ("status then CONNECT_BASE, both heard, the last answered", [("200", STATUS), ("500", CONNECT)], ["OK28"]),
+    (
+        "status then CONNECT_BASE, both heard, the last answered",
+        [("200", STATUS), ("500", CONNECT)],
+        ["OK28"],
+    ),
     ("CONNECT_BASE after the beeps", [("2500", CONNECT)], ["OK28"]),
 ]
 
@@ -130,7 +152,9 @@ def summary(cmd: int, payload: bytes) -> str:
     return f"C{cmd:02X}:{len(payload)}"
 
 
-@pytest.mark.parametrize(("writes", "observed"), [(w, o) for _, w, o in SEQUENCES], ids=[n for n, _, _ in SEQUENCES])
+@pytest.mark.parametrize(
+    ("writes", "observed"), [(w, o) for _, w, o in SEQUENCES], ids=[n for n, _, _ in SEQUENCES]
+)
 def test_the_model_answers_as_the_reference_did(writes: list[Write], observed: list[str]) -> None:
     assert answers_of(writes) == observed
 
@@ -194,4 +218,3 @@ def test_the_bytes_of_the_first_100_ms_are_lost() -> None:
     assert fed(receiver, STATUS, DEAF_S - 0.001) == []
     assert fed(receiver, b"", BOOT_SILENCE_S + 0.001) == []
     assert receiver.reports == 0
-

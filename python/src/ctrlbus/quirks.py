@@ -60,7 +60,8 @@ CHECKSUM_BIT = 0x40
 FRAME_READY_BIT = 0x80
 _ERROR_BITS = NOT_SYNCED_BIT | TOO_LONG_BIT | CHECKSUM_BIT
 REFERENCE_RX_BUFFER = 512
-BOOT_SILENCE_S = 1.90012  # set-up (0.12 ms after the 100 ms supply wait) and 1.8 s of beeps before the main loop runs
+# Set-up (0.12 ms, after the 100 ms supply wait) and 1.8 s of beeps, then the main loop runs.
+BOOT_SILENCE_S = 1.90012
 STARTUP_BATTERY_S = 3.0  # 0 % and a low-battery error until the first battery reading
 MAIN_LOOP_PASS_S = 20e-6  # one pass of the main loop (refbase --pass-us)
 IDLE_WAKE_S = 1e-3  # an idle loop looks again this long after a pass (refbase --idle-us)
