@@ -212,7 +212,7 @@ class DropsBehindGarbage(RewritingStack):
     """A request that arrives right behind garbage is dropped without a word: the garbage is
     reported (ERROR 0x0010), the request is neither answered nor reported dropped; sent again, it
     is answered. The reference does this too after some garbage lengths (3-6, 10-13, 16 bytes in
-    one write: protocol.md §8.3): a Core finds out at its request timeout and resends (a warning)."""
+    one write: protocol.md §8.5): a Core finds out at its request timeout and resends (a warning)."""
 
     def change_input(self, data: bytes, requests: list[Frame], now: float) -> bytes:
         at = data.find(requests[0].raw) if requests else -1

@@ -3,7 +3,7 @@
 answered to the same bytes (issue 23, item 2).
 
 Each sequence below was sent to the real firmware, base_ref v4 of slamware_kit_v6 (commit
-2ea1f06d) built unchanged for Linux (docs/protocol.md §8.3, "refbase"), in its virtual-time mode:
+2ea1f06d) built unchanged for Linux (docs/protocol.md §8.5, "refbase"), in its virtual-time mode:
 
     refbase --script FILE      # FILE: one "T_MS HEX.." or "+T_MS HEX.." line per write
 

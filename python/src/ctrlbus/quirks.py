@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: MIT
 """A model of the reference base firmware's receiver, for the simulated base's quirks mode.
 
-docs/simulator.md ("Reference quirks") is the manual and docs/protocol.md §8.3 states the
+docs/simulator.md ("Reference quirks") is the manual and docs/protocol.md §8.5 [ref-receiver] states the
 mechanism. The reference (base_ref v4) parses bytes in its receive interrupt and acts on them in a
 main loop; the two share one 512-byte buffer and one state word, and they race. This module
 reproduces that machinery sans-IO (bytes and time in, the answers the main loop sends out), so
