@@ -164,7 +164,7 @@ class ReferenceReceiver:
             self._line_in_free = due
         out = bytearray()
         while True:
-            wake = self._next_wake()
+            wake = self._next_wake(now)
             if wake > now + _TIE_S:
                 break
             self._receive_until(wake)
@@ -231,18 +231,23 @@ class ReferenceReceiver:
 
     # -- the main loop ---------------------------------------------------------------------------
 
-    def _next_wake(self) -> float:
-        """When the main loop next looks at the state word."""
+    def _next_wake(self, horizon: float) -> float:
+        """When the main loop next looks at the state word (`horizon`: how far time goes now)."""
         start = self._next_pass_from
         if start <= self._loop_from:
             return self._loop_from
-        wake = start + self.idle_s
-        if self._pending:
-            wake = min(wake, self._pending[0][0])
+        event = self._pending[0][0] if self._pending else float("inf")
         sent = self._next_byte_out(self._serviced)
         if sent is not None:
-            wake = min(wake, sent)
-        return max(wake, start)
+            event = min(event, sent)
+        idle_wake = start + self.idle_s
+        limit = min(event, horizon)
+        if not self._bits and limit > idle_wake:
+            # Idle passes with nothing raised do nothing but keep the loop's phase: skip to the
+            # last of them before the next event (or the horizon) instead of running each.
+            period = self.idle_s + self.pass_s
+            idle_wake += int((limit - idle_wake) / period) * period
+        return max(min(idle_wake, event), start)
 
     def _next_byte_out(self, after: float) -> float | None:
         """When the next answer byte after `after` leaves (the harness wakes the loop then)."""
