@@ -172,3 +172,26 @@ def test_a_base_that_answers_the_resend_wrongly_fails() -> None:
     assert status_of(context) is Status.FAIL
     (failure,) = messages(context, Status.FAIL)
     assert "answered ERROR 0x8001" in failure, failure
+
+
+class AnswersBehindGarbageWrongly(DropsBehindGarbage):
+    """A request right behind garbage is answered ERROR 0x8001 instead of being run."""
+
+    def __init__(self, app: SimulatedBase) -> None:
+        super().__init__(app)
+        self._behind_garbage = False
+
+    def change_output(self, answer: bytes, requests: list[Frame], now: float) -> bytes:
+        return answer + error_frame(0x8001) if self._behind_garbage else answer
+
+    def change_input(self, data: bytes, requests: list[Frame], now: float) -> bytes:
+        kept = super().change_input(data, requests, now)
+        self._behind_garbage = kept != data
+        return kept
+
+
+def test_a_base_that_answers_a_request_behind_garbage_wrongly_fails() -> None:
+    context = run_check_17(AnswersBehindGarbageWrongly(SimulatedBase(World(seed=1))))
+    assert status_of(context) is Status.FAIL
+    (failure,) = messages(context, Status.FAIL)
+    assert failure == "GET_BASE_STATUS right after 1 garbage byte was answered ERROR 0x8001", failure

@@ -552,10 +552,11 @@ def check_garbage(ctx: CheckContext) -> None:
 
     # A: plain garbage of every length from 1 to 16, each followed by a request in the same burst.
     # Whether the reference answers, drops with ERROR 0x0090 or drops silently depends on the
-    # length (the race between its receive interrupt and its main loop, protocol.md §8.3).
+    # length (the race between its receive interrupt and its main loop, protocol.md §8.5).
     reports = 0
     answered: list[int] = []
     marked: list[int] = []  # dropped, and an ERROR with 0x0080 said so
+    marking_codes: set[int] = set()
     silent: list[int] = []  # dropped, only garbage reports came back
     for length in GARBAGE_LENGTHS:
         prober.drain()
@@ -565,6 +566,11 @@ def check_garbage(ctx: CheckContext) -> None:
             f"{length} garbage byte{'s' if length > 1 else ''}, then GET_BASE_STATUS",
         )
         before, answer, _ = _until(ctx, sent_at, wait_s, _is_ok)
+        bytes_text = f"{length} garbage byte{'s' if length > 1 else ''}"
+        wrong = [frame for frame in before if not is_line_fault(error_code_of(frame))]
+        if wrong:
+            ctx.fail(f"GET_BASE_STATUS right after {bytes_text} was answered {_got(wrong[0])}")
+            return
         codes = [error_code_of(frame) for frame in before]
         reports += sum(1 for code in codes if is_line_fault(code, ErrorCode.NOT_SYNCED))
         if answer is not None:
@@ -573,17 +579,19 @@ def check_garbage(ctx: CheckContext) -> None:
         again, _ = _answer_as_core(ctx, STATUS_REQUEST, "GET_BASE_STATUS again, as a Core resends")
         if again is None or again.cmd != Response.OK:
             got = "nothing" if again is None else _got(again)
-            bytes_text = f"{length} garbage byte{'s' if length > 1 else ''}"
             ctx.fail(
                 f"GET_BASE_STATUS right after {bytes_text} was not answered within {wait_s * 1000:.0f} ms, "
                 f"and when sent again it was answered {got}"
             )
             return
-        (marked if any(is_line_fault(code, 0x80) for code in codes) else silent).append(length)
+        marks = {code for code in codes if code is not None and is_line_fault(code, 0x80)}
+        marking_codes |= marks
+        (marked if marks else silent).append(length)
     if marked or silent:
         how = []
         if marked:
-            how.append(f"after {_lengths_text(marked)} garbage bytes reported dropped (ERROR 0x0090)")
+            shown = ", ".join(f"0x{code:04X}" for code in sorted(marking_codes))
+            how.append(f"after {_lengths_text(marked)} garbage bytes reported dropped (ERROR {shown})")
         if silent:
             how.append(
                 f"after {_lengths_text(silent)} garbage bytes dropped without a word (only ERROR 0x0010 "
