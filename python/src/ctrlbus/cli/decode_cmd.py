@@ -34,12 +34,14 @@ from ctrlbus.annotate import (
 )
 from ctrlbus.capture import CaptureReader, Direction, looks_like_capture
 from ctrlbus.cli.common import (
-    _HEX_TOKEN,
     _NOT_SEPARATOR,
+    BOM,
     add_color_argument,
     add_decoder_arguments,
     add_direction_argument,
     decoder_settings,
+    hex_token_bytes,
+    hex_token_problem,
     use_color,
 )
 from ctrlbus.errors import UsageError
@@ -80,7 +82,6 @@ _WAITING_LIMIT = 1024
 _WAITING_BYTES_LIMIT = 1 << 18
 _TRAILING_TOKEN = re.compile(_NOT_SEPARATOR.pattern + r"\Z")
 _PCAPNG_MAGIC = b"\x0a\x0d\x0d\x0a"
-_TEXT_CONTROLS = frozenset("\t\n\r\f\v")
 
 
 def register(subparsers: Any) -> None:
@@ -121,15 +122,18 @@ def detect_format(data: bytes, *, complete: bool = True) -> str:
         text = codecs.getincrementaldecoder("utf-8")().decode(data, final=complete)
     except UnicodeDecodeError:
         return "binary"
-    if all(char.isprintable() or char in _TEXT_CONTROLS for char in text):
+    # A byte order mark opening the text and Unicode spaces (a no-break space pasted from a web
+    # page) are text too, as --format hex reads them.
+    if all(char.isprintable() or char.isspace() for char in text.removeprefix(BOM)):
         return "hex"
     return "binary"
 
 
 class _HexText:
     """Hex text read piece by piece (the rules of parse_hex_text: tokens between whitespace, commas
-    and colons, '#' comments to the end of the line, an even number of digits in all). Holds at
-    most one piece and one token whatever the input's size."""
+    and colons, '#' comments to the end of the line, each token one or an even number of digits,
+    a byte order mark at the start ignored). Holds at most one piece and one token whatever the
+    input's size."""
 
     def __init__(self, name: str) -> None:
         self._name = name
@@ -138,14 +142,16 @@ class _HexText:
         self._in_comment = False  # the rest of the current line is a comment
         self._line = 1
         self._column = 1  # column of _rest's first character
-        self._odd_digit = ""  # a digit waiting for its pair (digits pair across tokens)
-        self._digits = 0
+        self._started = False  # the first character was seen (a byte order mark may open the text)
 
     def feed(self, data: bytes, *, final: bool = False) -> bytes:
         try:
             text = self._rest + self._text.decode(data, final=final)
         except UnicodeDecodeError:
             raise UsageError(f"{self._name} is not text, so not hex text (try --format binary)") from None
+        if not self._started and text:
+            self._started = True
+            text = text.removeprefix(BOM)
         out = bytearray()
         position = 0
         while position < len(text):
@@ -179,11 +185,6 @@ class _HexText:
                 self._newline()
             position = stop + 1
         self._rest = ""
-        if final and self._odd_digit:
-            raise UsageError(
-                f"{self._name}: hex text has an odd number of digits ({self._digits}) "
-                "(neither a capture nor hex text; --format binary reads raw bytes)"
-            )
         return bytes(out)
 
     def _newline(self) -> None:
@@ -192,18 +193,14 @@ class _HexText:
 
     def _parse(self, part: str, out: bytearray) -> None:
         for token in _NOT_SEPARATOR.finditer(part):
-            match = _HEX_TOKEN.fullmatch(token.group())
-            if match is None:
+            spelled = hex_token_bytes(token.group())
+            if spelled is None:
                 where = f"line {self._line} column {self._column + token.start()}"
                 raise UsageError(
-                    f"{self._name}: not hex text: {token.group()!r} at {where} "
+                    f"{self._name}: {hex_token_problem(token.group())} at {where} "
                     "(neither a capture nor hex text; --format binary reads raw bytes)"
                 )
-            digits = self._odd_digit + match.group(1)
-            self._digits += len(match.group(1))
-            even = len(digits) - len(digits) % 2
-            out += bytes.fromhex(digits[:even])
-            self._odd_digit = digits[even:]
+            out += spelled
 
 
 class DecodeStream:
