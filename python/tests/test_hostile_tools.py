@@ -11,13 +11,24 @@ the sigrok decoder have their own files (test_wireshark_hostile.py, test_sigrok_
 from __future__ import annotations
 
 import json
+import os
+import resource
+import signal
+import subprocess
+import sys
+import time
+import tty
 from pathlib import Path
 
 import pytest
+from test_spy import LIMIT_S, wait_until
 
+from ctrlbus.capture import Direction, read_capture
 from ctrlbus.cli import main
+from ctrlbus.errors import CaptureError
 
 GET_BASE_STATUS = "10 02 F8 30 DA"
+CTRLBUS = [sys.executable, "-m", "ctrlbus"]
 
 
 def decode_json(capsys: pytest.CaptureFixture[str], path: Path, *options: str) -> tuple[int, list[dict], str]:
@@ -74,3 +85,103 @@ def test_hex_text_with_a_bom_or_a_no_break_space_is_read_as_hex(
         code, records, _ = decode_json(capsys, path, "--format", form)
         assert code == 0
         assert frames(records) == [GET_BASE_STATUS], form
+
+
+# --- row 4: the tap's stdout reader goes away ---------------------------------------------------
+
+
+def _raw_pty() -> tuple[int, str]:
+    """A pty as a tapped line: (master fd to write the line's bytes to, the slave's path)."""
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    path = os.ttyname(slave)
+    os.close(slave)
+    return master, path
+
+
+def test_tap_keeps_recording_when_its_stdout_is_closed(tmp_path: Path) -> None:
+    core_line, core_path = _raw_pty()
+    base_line, base_path = _raw_pty()
+    capture = tmp_path / "tap.pcap"
+    command = [*CTRLBUS, "capture", "--tap", f"core={core_path}", "--tap", f"base={base_path}", "-o", str(capture)]
+    tool = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, stdin=subprocess.DEVNULL)
+    try:
+        assert tool.stdout is not None and tool.stderr is not None
+        assert tool.stdout.readline().startswith(b"core: ")  # the ports are open: it listens
+        tool.stdout.close()  # the reader goes away, as `| head -1` does
+        pairs = 7
+        for _ in range(pairs):
+            os.write(core_line, bytes.fromhex(GET_BASE_STATUS))
+            os.write(base_line, bytes.fromhex("50 03 00 02 50 03 02"))
+
+        def recorded() -> int:
+            try:
+                return len(read_capture(capture))
+            except (OSError, CaptureError):
+                return 0
+
+        assert wait_until(lambda: recorded() >= 2 * pairs or tool.poll() is not None)
+        assert tool.poll() is None, tool.stderr.read().decode()
+        tool.send_signal(signal.SIGINT)
+        assert tool.wait(timeout=LIMIT_S) == 0
+        err = tool.stderr.read().decode()
+    finally:
+        if tool.poll() is None:
+            tool.kill()
+            tool.wait()
+        os.close(core_line)
+        os.close(base_line)
+    assert f"stdout was closed; still recording to {capture}" in err
+    records = read_capture(capture)
+    core = b"".join(r.data for r in records if r.direction is Direction.CORE_TO_BASE)
+    assert core == bytes.fromhex(GET_BASE_STATUS) * pairs
+
+
+# --- row 12: a full disk, and a capture cut inside its last record ---------------------------------
+
+
+def _limit_file_size() -> None:
+    # Writes past 210 bytes fail as on a full disk (EFBIG; Python ignores SIGXFSZ).
+    resource.setrlimit(resource.RLIMIT_FSIZE, (210, 210))
+
+
+def test_a_failed_capture_write_names_the_file_and_decode_says_the_record_is_cut(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    capture = tmp_path / "full.pcap"
+    command = [*CTRLBUS, "capture", "--port", "pty", "-o", str(capture)]
+    tool = subprocess.Popen(
+        command,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        stdin=subprocess.DEVNULL,
+        preexec_fn=_limit_file_size,
+    )
+    try:
+        assert tool.stdout is not None and tool.stderr is not None
+        pty_path = tool.stdout.readline().decode().removeprefix("pty: ").strip()
+        port = os.open(pty_path, os.O_WRONLY | os.O_NOCTTY)
+        try:
+            # 24 header bytes, then 22 bytes a record: the 9th record does not fit in 210 bytes.
+            deadline = time.monotonic() + LIMIT_S
+            while tool.poll() is None and time.monotonic() < deadline:
+                os.write(port, bytes.fromhex(GET_BASE_STATUS))
+                wait_until(lambda: tool.poll() is not None, limit_s=0.05)  # one record each, mostly
+        finally:
+            os.close(port)
+        assert tool.wait(timeout=LIMIT_S) == 2
+        err = tool.stderr.read().decode()
+    finally:
+        if tool.poll() is None:
+            tool.kill()
+            tool.wait()
+    assert err.count("\n") == 1 and f"cannot write {capture}: File too large" in err, err
+    assert capture.stat().st_size == 210  # cut inside a record
+
+    code = main(["decode", str(capture)])
+    out, err = capsys.readouterr()
+    assert code == 0 and out.count("GET_BASE_STATUS") >= 1
+    assert "warning:" in err and "the last record is cut short" in err
+    code = main(["decode", "--strict", str(capture)])
+    out, err = capsys.readouterr()
+    assert code == 2 and "error:" in err and "the last record is cut short" in err

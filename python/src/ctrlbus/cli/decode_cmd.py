@@ -2,7 +2,7 @@
 """`ctrlbus decode`: show what a byte stream or a capture says, frame by frame.
 
     ctrlbus decode [FILE|-] [--json] [--direction core|base] [--color auto|always|never]
-                   [--format auto|capture|hex|binary] [--timeout-ms N] [--max-frame N]
+                   [--format auto|capture|hex|binary] [--strict] [--timeout-ms N] [--max-frame N]
 
 The input is recognised by its content: a capture (pcap, docs/capture-format.md), hex text, or raw
 bytes. Every frame is printed with its offset (and, for a capture, its time and direction), its
@@ -107,6 +107,12 @@ def register(subparsers: Any) -> None:
         choices=("auto", "capture", "hex", "binary"),
         default="auto",
         help="how to read the input (default auto: recognise a capture, then hex text, else raw bytes)",
+    )
+    parser.add_argument(
+        "--strict",
+        action="store_true",
+        help="exit 2 when the input is damaged (a capture cut inside its last record, as a full "
+        "disk leaves it); without it that is a warning and the exit code is 0",
     )
     add_decoder_arguments(parser, timeout_ms=DEFAULT_TIMEOUT_MS)
     parser.set_defaults(func=run)
@@ -399,7 +405,9 @@ def run(args: argparse.Namespace) -> int:
     finally:
         if source is not sys.stdin.buffer:
             source.close()
-    return 0
+    for warning in decoded.warnings:
+        print(f"ctrlbus decode: {'error' if args.strict else 'warning'}: {warning}", file=sys.stderr)
+    return 2 if args.strict and decoded.warnings else 0
 
 
 def _print_decoded(decoded: DecodeStream, sender: Direction | None, *, as_json: bool, color: bool) -> None:
@@ -425,6 +433,3 @@ def _print_decoded(decoded: DecodeStream, sender: Direction | None, *, as_json: 
     except BrokenPipeError:
         # The reader went away (decode ... | head): not an error of ours.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return
-    for warning in decoded.warnings:
-        print(f"ctrlbus decode: warning: {warning}", file=sys.stderr)
