@@ -23,8 +23,9 @@ from pathlib import Path
 import pytest
 from test_spy import LIMIT_S, wait_until
 
-from ctrlbus.capture import Direction, read_capture
+from ctrlbus.capture import CaptureWriter, Direction, read_capture
 from ctrlbus.cli import main
+from ctrlbus.cli.replay_cmd import DEFAULT_MAX_GAP_S, cap_gaps
 from ctrlbus.errors import CaptureError
 
 GET_BASE_STATUS = "10 02 F8 30 DA"
@@ -165,7 +166,10 @@ def test_a_failed_capture_write_names_the_file_and_decode_says_the_record_is_cut
             # 24 header bytes, then 22 bytes a record: the 9th record does not fit in 210 bytes.
             deadline = time.monotonic() + LIMIT_S
             while tool.poll() is None and time.monotonic() < deadline:
-                os.write(port, bytes.fromhex(GET_BASE_STATUS))
+                try:
+                    os.write(port, bytes.fromhex(GET_BASE_STATUS))
+                except OSError:  # EIO: the tool has just stopped, its end of the pty is gone
+                    break
                 wait_until(lambda: tool.poll() is not None, limit_s=0.05)  # one record each, mostly
         finally:
             os.close(port)
@@ -185,3 +189,53 @@ def test_a_failed_capture_write_names_the_file_and_decode_says_the_record_is_cut
     code = main(["decode", "--strict", str(capture)])
     out, err = capsys.readouterr()
     assert code == 2 and "error:" in err and "the last record is cut short" in err
+
+
+# --- row 10: a replay whose capture's clock jumps by 136 years ------------------------------------
+
+
+def test_replay_caps_a_time_jump_at_max_gap(tmp_path: Path) -> None:
+    capture = tmp_path / "jump.pcap"
+    with CaptureWriter.create(capture) as writer:
+        writer.write(Direction.CORE_TO_BASE, b"\x10\x01\x00\x11", 100.0)
+        writer.write(Direction.CORE_TO_BASE, bytes.fromhex(GET_BASE_STATUS), 4_294_967_295.0)
+    # --linger: the port stays open until the test has read it all (then Ctrl-C ends the replay)
+    command = [*CTRLBUS, "replay", str(capture), "--port", "pty", "--max-gap", "0.2", "--linger", "600"]
+    tool = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, stdin=subprocess.DEVNULL)
+    played = b""
+    try:
+        assert tool.stdout is not None and tool.stderr is not None
+        line = tool.stdout.readline().decode()
+        assert line.startswith("pty: "), line + tool.stderr.read().decode()
+        port = os.open(line.removeprefix("pty: ").strip(), os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
+        tty.setraw(port)
+        expected = b"\x10\x01\x00\x11" + bytes.fromhex(GET_BASE_STATUS)
+
+        def read_some() -> bool:
+            nonlocal played
+            try:
+                played += os.read(port, 64)
+            except (BlockingIOError, OSError):
+                pass
+            return played == expected
+
+        try:
+            assert wait_until(read_some), played
+        finally:
+            os.close(port)
+        tool.send_signal(signal.SIGINT)
+        assert tool.wait(timeout=LIMIT_S) == 0
+        err = tool.stderr.read().decode()
+    finally:
+        if tool.poll() is None:
+            tool.kill()
+            tool.wait()
+    assert "1 pause(s) longer than --max-gap 0.2 s (the longest 4.29497e+09 s) shortened to 0.2 s" in err
+
+
+def test_replay_pauses_are_capped_at_a_minute_by_default() -> None:
+    schedule = [(0.0, b"a"), (30.0, b"b"), (4_294_967_195.0, b"c"), (4_294_967_196.0, b"d")]
+    capped, shortened = cap_gaps(schedule, DEFAULT_MAX_GAP_S)
+    assert DEFAULT_MAX_GAP_S == 60.0
+    assert capped == [(0.0, b"a"), (30.0, b"b"), (90.0, b"c"), (91.0, b"d")]
+    assert shortened == [4_294_967_165.0]
