@@ -11,6 +11,7 @@ the sigrok decoder have their own files (test_wireshark_hostile.py, test_sigrok_
 from __future__ import annotations
 
 import json
+import logging
 import os
 import resource
 import signal
@@ -18,10 +19,13 @@ import subprocess
 import sys
 import time
 import tty
+import urllib.request
 from pathlib import Path
 
 import pytest
 from test_spy import LIMIT_S, wait_until
+from test_web import FakeSimSource, serve
+from test_web_edges import MAX_LINES_PER_PATH, raw_get
 
 from ctrlbus.capture import CaptureWriter, Direction, read_capture
 from ctrlbus.cli import main
@@ -239,3 +243,58 @@ def test_replay_pauses_are_capped_at_a_minute_by_default() -> None:
     assert DEFAULT_MAX_GAP_S == 60.0
     assert capped == [(0.0, b"a"), (30.0, b"b"), (90.0, b"c"), (91.0, b"d")]
     assert shortened == [4_294_967_165.0]
+
+
+# --- row 5: a duplicate Host header, 200 times -----------------------------------------------------
+
+
+def test_a_duplicate_host_header_is_one_throttled_line(caplog: pytest.LogCaptureFixture) -> None:
+    caplog.set_level(logging.DEBUG)
+    srv = serve(FakeSimSource())
+    try:
+        statuses = {
+            raw_get(srv, "GET /api/snapshot HTTP/1.1\r\nHost: 127.0.0.1\r\nHost: evil.example\r\n\r\n")[0]
+            for _ in range(200)
+        }
+    finally:
+        srv.stop()
+    assert statuses == {400}
+    lines = [record for record in caplog.records if record.levelno >= logging.WARNING]
+    assert 1 <= len(lines) <= MAX_LINES_PER_PATH, f"{len(lines)} lines"
+    assert not any(record.exc_info for record in lines)  # one line each, no traceback
+    assert "refused a malformed request from 127.0.0.1: Duplicate 'Host' header" in lines[0].getMessage()
+    assert srv.counters.malformed_requests == 200  # every one counted, logged or not
+
+
+# --- row 9: the demo on another loopback address ---------------------------------------------------
+
+
+def test_demo_on_another_loopback_address_works_at_the_url_it_prints() -> None:
+    demo = subprocess.Popen(
+        [*CTRLBUS, "demo", "--http", "127.0.0.2:0"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        stdin=subprocess.DEVNULL,
+        text=True,
+    )
+    try:
+        assert demo.stdout is not None
+        output = []
+        url = None
+        for line in demo.stdout:
+            output.append(line)
+            if "dashboard at " in line:
+                url = line.split("dashboard at ", 1)[1].strip()
+                break
+        assert url is not None and url.startswith("http://127.0.0.2:"), "".join(output)
+        with urllib.request.urlopen(url + "api/snapshot", timeout=LIMIT_S) as response:
+            assert response.status == 200
+            assert json.load(response)["type"] == "snapshot"
+    finally:
+        demo.send_signal(signal.SIGINT)
+        try:
+            demo.wait(LIMIT_S)
+        finally:
+            if demo.poll() is None:
+                demo.kill()
+                demo.wait()
