@@ -14,6 +14,8 @@ import json
 import logging
 import os
 import resource
+import shlex
+import shutil
 import signal
 import subprocess
 import sys
@@ -298,3 +300,75 @@ def test_demo_on_another_loopback_address_works_at_the_url_it_prints() -> None:
             if demo.poll() is None:
                 demo.kill()
                 demo.wait()
+
+
+# --- rows 6 and 7: shell completion -------------------------------------------------------------
+
+
+def completion_script(shell: str, capsys: pytest.CaptureFixture[str]) -> str:
+    assert main(["completion", shell]) == 0
+    return capsys.readouterr().out
+
+
+def bash_offers(script: str, words: list[str], cwd: Path) -> list[str]:
+    """What bash offers with COMP_WORDS = `words` (as bash splits the line: `--color=al` is
+    `--color`, `=`, `al`), the last one being typed; one candidate a line, so spaces stay."""
+    bash = shutil.which("bash")
+    assert bash, "bash is needed to test the bash completion"
+    quoted = " ".join(shlex.quote(word) for word in words)
+    probe = (
+        f"set -u; source /dev/stdin; COMP_WORDS=({quoted}); COMP_CWORD={len(words) - 1}; "
+        '_ctrlbus_complete; printf "%s\\n" "${COMPREPLY[@]}"'
+    )
+    done = subprocess.run(
+        [bash, "--norc", "-c", probe], input=script, capture_output=True, text=True, cwd=cwd, check=False
+    )
+    assert done.returncode == 0 and not done.stderr, done.stderr
+    return [line for line in done.stdout.split("\n") if line]
+
+
+def test_bash_completion_keeps_names_whole_and_knows_every_choice(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    script = completion_script("bash", capsys)
+    (tmp_path / "a b.pcap").write_bytes(b"")
+    assert bash_offers(script, ["ctrlbus", "decode", "a"], tmp_path) == ["a b.pcap"]
+    assert bash_offers(script, ["ctrlbus", "decode", "--color", "="], tmp_path) == ["auto", "always", "never"]
+    assert bash_offers(script, ["ctrlbus", "decode", "--color", "=", "al"], tmp_path) == ["always"]
+    assert bash_offers(script, ["ctrlbus", "sim", "--profile", ""], tmp_path) == ["reference", "sdk2020"]
+    assert bash_offers(script, ["ctrlbus", "sim", "--quirks", ""], tmp_path) == ["none", "reference"]
+    only = bash_offers(script, ["ctrlbus", "check", "--only", ""], tmp_path)
+    assert {"link", "connect", "1", "2"} <= set(only) and "a b.pcap" not in only
+
+
+def zsh_offers(script: str, words: list[str], cwd: Path) -> list[str]:
+    """What zsh offers: the script sourced in zsh, the completion function called the way zsh's
+    bashcompinit calls a bash completion function (compgen -F, in its emulation)."""
+    zsh = shutil.which("zsh")
+    assert zsh, "zsh is needed to test the zsh completion: scripts/setup.sh full installs it"
+    probe = (
+        'source "$1"; shift; words=("$@"); CURRENT=$#; COMP_WORDS=("${words[@]}"); '
+        'COMP_CWORD=$((CURRENT - 1)); compgen -F _ctrlbus_complete -o filenames -- "${words[CURRENT]}"'
+    )
+    (cwd / "completion.zsh").write_text(script)
+    done = subprocess.run(
+        [zsh, "-f", "-c", probe, "zsh", str(cwd / "completion.zsh"), *words],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        env={**os.environ, "HOME": str(cwd), "ZDOTDIR": str(cwd)},
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    return [line for line in done.stdout.split("\n") if line]
+
+
+def test_zsh_completion_offers_the_choices_of_an_option(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    script = completion_script("zsh", capsys)
+    (tmp_path / "a b.pcap").write_bytes(b"")
+    assert zsh_offers(script, ["ctrlbus", "decode", "--color", ""], tmp_path) == ["auto", "always", "never"]
+    # (zsh's compgen leaves matching the typed prefix to zsh itself: an empty word shows all)
+    assert zsh_offers(script, ["ctrlbus", "sim", "--quirks", ""], tmp_path) == ["none", "reference"]
+    assert "a b.pcap" in zsh_offers(script, ["ctrlbus", "decode", ""], tmp_path)
