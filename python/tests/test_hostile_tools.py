@@ -10,6 +10,7 @@ the sigrok decoder have their own files (test_wireshark_hostile.py, test_sigrok_
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import os
@@ -23,6 +24,7 @@ import time
 import tty
 import urllib.request
 from pathlib import Path
+from typing import Any
 
 import pytest
 from test_spy import LIMIT_S, wait_until
@@ -38,13 +40,15 @@ GET_BASE_STATUS = "10 02 F8 30 DA"
 CTRLBUS = [sys.executable, "-m", "ctrlbus"]
 
 
-def decode_json(capsys: pytest.CaptureFixture[str], path: Path, *options: str) -> tuple[int, list[dict], str]:
+def decode_json(
+    capsys: pytest.CaptureFixture[str], path: Path, *options: str
+) -> tuple[int, list[dict[str, Any]], str]:
     code = main(["decode", "--json", *options, str(path)])
     out, err = capsys.readouterr()
     return code, [json.loads(line) for line in out.splitlines()], err
 
 
-def frames(records: list[dict]) -> list[str]:
+def frames(records: list[dict[str, Any]]) -> list[str]:
     return [record["hex"] for record in records if record["kind"] == "frame"]
 
 
@@ -110,7 +114,8 @@ def test_tap_keeps_recording_when_its_stdout_is_closed(tmp_path: Path) -> None:
     core_line, core_path = _raw_pty()
     base_line, base_path = _raw_pty()
     capture = tmp_path / "tap.pcap"
-    command = [*CTRLBUS, "capture", "--tap", f"core={core_path}", "--tap", f"base={base_path}", "-o", str(capture)]
+    command = [*CTRLBUS, "capture", "--tap", f"core={core_path}", "--tap", f"base={base_path}"]
+    command += ["-o", str(capture)]
     tool = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, stdin=subprocess.DEVNULL)
     try:
         assert tool.stdout is not None and tool.stderr is not None
@@ -219,10 +224,8 @@ def test_replay_caps_a_time_jump_at_max_gap(tmp_path: Path) -> None:
 
         def read_some() -> bool:
             nonlocal played
-            try:
+            with contextlib.suppress(OSError):  # nothing there yet (EAGAIN)
                 played += os.read(port, 64)
-            except (BlockingIOError, OSError):
-                pass
             return played == expected
 
         try:

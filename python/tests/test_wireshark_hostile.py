@@ -12,8 +12,8 @@ same frames, events and counters as `ctrlbus decode` on the same file.
 
 from __future__ import annotations
 
+import importlib.util
 import os
-import random
 import resource
 import subprocess
 import time
@@ -23,9 +23,15 @@ from typing import Any
 import pytest
 from test_wireshark_vs_decode import DISSECTOR, TSHARK, close_out, decode_view, dissector_view
 
-from ctrlbus.capture import CaptureWriter, Direction
+from ctrlbus.capture import Direction
 
-EPOCH = 1_700_000_000.0
+# The captures come from the benchmark that measures tshark on them (docs/reliability.md).
+_SPEC = importlib.util.spec_from_file_location(
+    "hostile_captures", Path(__file__).resolve().parents[2] / "bench" / "hostile_captures.py"
+)
+assert _SPEC is not None and _SPEC.loader is not None
+hostile_captures = importlib.util.module_from_spec(_SPEC)
+_SPEC.loader.exec_module(hostile_captures)
 CPU_LIMIT_S = 60  # the old dissector needs hours on the 1 MB capture; the new one about a second
 RSS_LIMIT_KB = 500 * 1024  # tshark itself takes about 160 MB here; the old dissector took GBs
 
@@ -34,24 +40,6 @@ RSS_LIMIT_KB = 500 * 1024  # tshark itself takes about 160 MB here; the old diss
 def _tshark_is_installed() -> None:
     if TSHARK is None:
         pytest.fail("tshark is not installed: scripts/setup.sh installs it (apt-get install tshark)")
-
-
-def write_records(path: Path, size: int, seed: int, long_headers: bool) -> None:
-    """`size` bytes in records of 1..4096 bytes, 1 ms apart (read chunks, as the tap writes them)."""
-    rng = random.Random(seed)
-    pattern = b"\x50\xff\xff" * (size // 3 + 2)
-    written = 0
-    with CaptureWriter.create(path) as writer:
-        for index in range(size):
-            if written >= size:
-                break
-            count = min(rng.randint(1, 4096), size - written)
-            if long_headers:
-                direction, data = Direction.CORE_TO_BASE, pattern[written : written + count]
-            else:
-                direction, data = rng.choice(list(Direction)), rng.randbytes(count)
-            writer.write(direction, data, EPOCH + index * 0.001)
-            written += count
 
 
 def tshark_cost(path: Path) -> tuple[float, int]:
@@ -79,15 +67,12 @@ def tshark_cost(path: Path) -> tuple[float, int]:
     return elapsed, usage.ru_maxrss
 
 
-@pytest.mark.parametrize(
-    ("name", "size", "long_headers"),
-    [("false-long-headers", 1_000_000, True), ("random", 2_000_000, False)],
-)
+@pytest.mark.parametrize(("name", "size", "long_headers"), hostile_captures.CAPTURES)
 def test_hostile_capture_is_read_in_linear_time_and_bounded_memory(
     tmp_path: Path, name: str, size: int, long_headers: bool
 ) -> None:
     path = tmp_path / f"{name}.pcap"
-    write_records(path, size, seed=25, long_headers=long_headers)
+    hostile_captures.write_records(path, size, seed=25, long_headers=long_headers)
     close_out(path)
     elapsed, peak_kb = tshark_cost(path)
     assert elapsed < CPU_LIMIT_S and peak_kb < RSS_LIMIT_KB, (elapsed, peak_kb)

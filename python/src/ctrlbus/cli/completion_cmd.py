@@ -33,6 +33,7 @@ def offer_values(action: argparse.Action, values: Iterable[str]) -> argparse.Act
     setattr(action, _COMPLETION_VALUES, tuple(values))
     return action
 
+
 SHELLS = ("bash", "zsh")
 
 _ZSH_PRELUDE = "autoload -U +X compinit && compinit\nautoload -U +X bashcompinit && bashcompinit\n"

@@ -390,7 +390,9 @@ def show_chunks(
             try:
                 capture.write(chunk.direction, chunk.data, chunk.time)
             except OSError as exc:  # a full disk: the message names the file
-                raise UsageError(f"cannot write {capture.path or 'the capture'}: {exc.strerror or exc}") from None
+                raise UsageError(
+                    f"cannot write {capture.path or 'the capture'}: {exc.strerror or exc}"
+                ) from None
             except CaptureError as exc:
                 raise UsageError(f"cannot write the capture: {exc}") from None
         for entry in annotator.feed(chunk.data, chunk.direction, chunk.time):
