@@ -22,9 +22,10 @@
 -- (ctrlbus.sensors.x_mm_q8); list fields occur once per element, in order. A field whose contract
 -- value is null (or empty bytes) is absent. The message itself: ctrlbus.msg.kind (request/answer),
 -- ctrlbus.msg.name, ctrlbus.msg.to (the request an answer answers), ctrlbus.msg.request_in.
--- Decoder results: ctrlbus.stream.event (a raised event, contract name), ctrlbus.stream.silent (a
--- failure inside an earlier failure's span: counted, no event), ctrlbus.stream.offset (offset in
--- that direction's byte stream), ctrlbus.counters.* (the direction's counters after the record).
+-- Decoder results: ctrlbus.stream.event (a raised event, contract name), ctrlbus.stream.silent and
+-- .silent_count (failures inside an earlier failure's span, counted with no event: per kind, in the
+-- run of silently dropped bytes they lie in), ctrlbus.stream.offset (offset in that direction's
+-- byte stream), ctrlbus.counters.* (the direction's counters after the record).
 --
 -- Pairing answers with requests: the outstanding request is the last request frame (Core to base)
 -- decoded. An answer OK, SYNC, ECHO or INVALID answers it and clears it. An ERROR answers it and
