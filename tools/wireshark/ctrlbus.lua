@@ -262,7 +262,8 @@ end
 --   { type = "discarded", size, data (once finished), offset, packet, packet_offset, raised, silent,
 --     failures (silent runs only: kind -> how many candidates failed inside the run) }
 --   { type = "failure", kind, raised, size, offset, packet, packet_offset, expected, found, declared }
---   { type = "empty_frame", raised, data, offset, packet, packet_offset }
+--   { type = "empty_frame", raised, data, size, offset, packet, packet_offset }
+-- (all but frames are compact arrays, read by the same names: see compact_item below)
 --
 -- Cost: hostile input can make every third byte start a candidate of 65,539 bytes (`50 FF FF`
 -- repeated), so nothing may cost a candidate's size per failure. Checksums come from a running
@@ -271,6 +272,26 @@ end
 -- (silent: counted, no event) join the run of silently dropped bytes they lie in, and runs of
 -- garbage are dropped in one step. So the work is O(1) per byte, and the memory kept per record is
 -- its frames, its raised events and the bytes it dropped, never a candidate per failure.
+
+-- Items other than frames can be as many as a third of the bytes (`10 00 FF` repeated raises a
+-- checksum error every third byte), and every record's items are kept for later passes: they are
+-- arrays (a Lua table with named fields costs about 700 bytes, an array of 10 about 220) read and
+-- written by field name through these metatables.
+local function compact_item(fields)
+    return {
+        __index = function(item, name)
+            local index = fields[name]
+            if index then return rawget(item, index) end
+        end,
+        __newindex = function(item, name, value) rawset(item, fields[name] or name, value) end,
+    }
+end
+local DISCARDED = compact_item({ type = 1, offset = 2, size = 3, packet = 4, packet_offset = 5, raised = 6,
+    silent = 7, data = 8, failures = 9 })
+local FAILURE = compact_item({ type = 1, offset = 2, size = 3, packet = 4, packet_offset = 5, raised = 6,
+    kind = 7, expected = 8, found = 9, declared = 10 })
+local EMPTY_FRAME = compact_item({ type = 1, offset = 2, size = 3, packet = 4, packet_offset = 5, raised = 6,
+    data = 7 })
 
 local Decoder = {}
 Decoder.__index = Decoder
@@ -383,8 +404,8 @@ function Decoder:note_drop(out, count, failed, garbage)
         item = last
         item.size = item.size + count
     else
-        item = { type = "discarded", size = count, offset = self.stream_offset, packet = packet,
-            packet_offset = packet_offset, raised = raise, silent = silent }
+        item = setmetatable({ "discarded", self.stream_offset, count, packet, packet_offset, raise, silent,
+            false, false }, DISCARDED)
         out[#out + 1] = item
     end
     if failed then
@@ -446,7 +467,7 @@ end
 
 local FAILURE_COUNTERS = { checksum_error = "checksum_errors", oversize = "oversize", timeout = "timeouts" }
 
-function Decoder:fail(kind, out, candidate_size, info)
+function Decoder:fail(kind, out, candidate_size, expected, found, declared)
     local buffered = self:count()
     local raised = self.silent == 0
     local counters = self.counters
@@ -457,10 +478,8 @@ function Decoder:fail(kind, out, candidate_size, info)
     if raised then
         self.quiet = true
         local packet, packet_offset = self:origin()
-        local item = { type = "failure", kind = kind, raised = true, size = math.min(candidate_size, buffered),
-            offset = self.stream_offset, packet = packet, packet_offset = packet_offset }
-        for key, value in pairs(info or {}) do item[key] = value end
-        out[#out + 1] = item
+        out[#out + 1] = setmetatable({ "failure", self.stream_offset, math.min(candidate_size, buffered), packet,
+            packet_offset, true, kind, expected or false, found or false, declared or false }, FAILURE)
     else
         self:note_drop(out, 1, kind, false)
     end
@@ -487,7 +506,7 @@ function Decoder:process(out, flush)
                     or (self:byte_at(head + 1) + 256 * self:byte_at(head + 2))
                 local size = header + len + 1
                 if size > self.max_frame then
-                    self:fail("oversize", out, header, { declared = size })
+                    self:fail("oversize", out, header, nil, nil, size)
                 elseif available < size then
                     if not flush then self.need = size return end
                     self:fail("timeout", out, available)
@@ -495,16 +514,15 @@ function Decoder:process(out, flush)
                     local sum = self:xor_of(size - 1)
                     local found = self:byte_at(head + size - 1)
                     if sum ~= found then
-                        self:fail("checksum_error", out, size, { expected = sum, found = found })
+                        self:fail("checksum_error", out, size, sum, found)
                     elseif len == 0 then
                         local raised = self.silent == 0
                         if raised then self.quiet = true end
                         self.counters.empty_frames = self.counters.empty_frames + 1
                         self.counters.bytes_discarded = self.counters.bytes_discarded + size
                         local packet, packet_offset = self:origin()
-                        out[#out + 1] = { type = "empty_frame", raised = raised,
-                            data = self:stream_bytes(self.stream_offset, size),
-                            offset = self.stream_offset, packet = packet, packet_offset = packet_offset }
+                        out[#out + 1] = setmetatable({ "empty_frame", self.stream_offset, size, packet, packet_offset,
+                            raised, self:stream_bytes(self.stream_offset, size) }, EMPTY_FRAME)
                         self:consume(size)
                     else
                         local packet, packet_offset = self:origin()
