@@ -3,10 +3,10 @@
 
     .venv/bin/python bench/hostile_captures.py [--out DIR]
 
-Writes the two captures of docs/reliability.md ("The Wireshark dissector under hostile input"):
-1 MB of false long headers (`50 FF FF` repeated: every third byte starts a candidate announcing
-65,539 bytes) and 2 MB of random bytes in both directions, in records of 1..4096 bytes 1 ms apart,
-as a tap writes read chunks. Then it runs tshark with tools/wireshark/ctrlbus.lua on each, and on
+Writes the captures of docs/reliability.md ("The Wireshark dissector under hostile input"): 1 MB
+of false long headers (`50 FF FF` repeated: every third byte starts a candidate announcing 65,539
+bytes), 2 MB of random bytes in both directions, and 1 MB of `10 00 FF` (a raised checksum error
+every third byte), in records of 1..4096 bytes 1 ms apart, as a tap writes read chunks. Then it runs tshark with tools/wireshark/ctrlbus.lua on each, and on
 a one-frame capture for tshark's own footprint, and `ctrlbus decode` on each, and prints wall
 seconds and peak RSS per run. python/tests/test_wireshark_hostile.py writes the same captures
 (write_records) and holds tshark to loose bounds; the figures themselves are measured here.
@@ -27,25 +27,35 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 DISSECTOR = REPO / "tools" / "wireshark" / "ctrlbus.lua"
 EPOCH = 1_700_000_000.0
-# (name, bytes, false long headers?)
-CAPTURES = [("false-long-headers", 1_000_000, True), ("random", 2_000_000, False)]
+# (name, bytes, the 3 bytes repeated, or None for random bytes): the captures the test reads
+CAPTURES: list[tuple[str, int, bytes | None]] = [
+    ("false-long-headers", 1_000_000, b"\x50\xff\xff"),
+    ("random", 2_000_000, None),
+]
+# Measured here only: the most items a dissector must keep, a raised checksum error (and a silent
+# run) every third byte.
+WORST_CASE: tuple[str, int, bytes | None] = (
+    "event-every-third-byte",
+    1_000_000,
+    b"\x10\x00\xff",
+)
 
 
-def write_records(path: Path, size: int, seed: int, long_headers: bool) -> None:
-    """`size` bytes in records of 1..4096 bytes, 1 ms apart: `50 FF FF` repeated, Core to base
-    (`long_headers`), or random bytes in random directions."""
+def write_records(path: Path, size: int, seed: int, pattern: bytes | None) -> None:
+    """`size` bytes in records of 1..4096 bytes, 1 ms apart: `pattern` repeated, Core to base, or
+    (None) random bytes in random directions."""
     from ctrlbus.capture import CaptureWriter, Direction
 
     rng = random.Random(seed)
-    pattern = b"\x50\xff\xff" * (size // 3 + 2)
+    repeated = pattern * (size // len(pattern) + 2) if pattern else b""
     written = index = 0
     with CaptureWriter.create(path) as writer:
         while written < size:
             count = min(rng.randint(1, 4096), size - written)
-            if long_headers:
+            if pattern is not None:
                 direction, data = (
                     Direction.CORE_TO_BASE,
-                    pattern[written : written + count],
+                    repeated[written : written + count],
                 )
             else:
                 direction, data = rng.choice(list(Direction)), rng.randbytes(count)
@@ -99,9 +109,9 @@ def main() -> int:
     print(
         f"tshark, one frame (its own footprint): {cost(tshark_command(tshark, baseline))}"
     )
-    for name, size, long_headers in CAPTURES:
+    for name, size, pattern in [*CAPTURES, WORST_CASE]:
         path = out / f"{name}.pcap"
-        write_records(path, size, seed=25, long_headers=long_headers)
+        write_records(path, size, seed=25, pattern=pattern)
         print(f"tshark, {name} ({size:,} bytes): {cost(tshark_command(tshark, path))}")
         decode = [sys.executable, "-m", "ctrlbus", "decode", "--json", str(path)]
         print(f"ctrlbus decode, {name}: {cost(decode)}")
