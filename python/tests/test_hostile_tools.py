@@ -218,8 +218,8 @@ def test_replay_caps_a_time_jump_at_max_gap(tmp_path: Path) -> None:
         assert tool.stdout is not None and tool.stderr is not None
         line = tool.stdout.readline().decode()
         assert line.startswith("pty: "), line + tool.stderr.read().decode()
+        # (the tool has put the pty in raw mode; setting it again here would flush what it wrote)
         port = os.open(line.removeprefix("pty: ").strip(), os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
-        tty.setraw(port)
         expected = b"\x10\x01\x00\x11" + bytes.fromhex(GET_BASE_STATUS)
 
         def read_some() -> bool:
