@@ -6,10 +6,11 @@
 Writes the captures of docs/reliability.md ("The Wireshark dissector under hostile input"): 1 MB
 of false long headers (`50 FF FF` repeated: every third byte starts a candidate announcing 65,539
 bytes), 2 MB of random bytes in both directions, and 1 MB of `10 00 FF` (a raised checksum error
-every third byte), in records of 1..4096 bytes 1 ms apart, as a tap writes read chunks. Then it runs tshark with tools/wireshark/ctrlbus.lua on each, and on
-a one-frame capture for tshark's own footprint, and `ctrlbus decode` on each, and prints wall
-seconds and peak RSS per run. python/tests/test_wireshark_hostile.py writes the same captures
-(write_records) and holds tshark to loose bounds; the figures themselves are measured here.
+every third byte), in records of 1..4096 bytes 1 ms apart, as a tap writes read chunks. Then it
+runs tshark with tools/wireshark/ctrlbus.lua on each, and on a one-frame capture for tshark's own
+footprint, and `ctrlbus decode` on each, and prints wall and CPU seconds and peak RSS per run.
+python/tests/test_wireshark_hostile.py writes the first two (write_records) and holds tshark to
+loose bounds; the figures themselves are measured here.
 """
 
 from __future__ import annotations
@@ -106,9 +107,7 @@ def main() -> int:
     baseline = out / "one-frame.pcap"
     with CaptureWriter.create(baseline) as writer:
         writer.write(Direction.CORE_TO_BASE, bytes.fromhex("10 02 F8 30 DA"), EPOCH)
-    print(
-        f"tshark, one frame (its own footprint): {cost(tshark_command(tshark, baseline))}"
-    )
+    print(f"tshark, one frame (its own footprint): {cost(tshark_command(tshark, baseline))}")
     for name, size, pattern in [*CAPTURES, WORST_CASE]:
         path = out / f"{name}.pcap"
         write_records(path, size, seed=25, pattern=pattern)
