@@ -11,6 +11,8 @@ the sigrok decoder have their own files (test_wireshark_hostile.py, test_sigrok_
 from __future__ import annotations
 
 import contextlib
+import errno
+import io
 import json
 import logging
 import os
@@ -31,10 +33,12 @@ from test_spy import LIMIT_S, wait_until
 from test_web import FakeSimSource, serve
 from test_web_edges import MAX_LINES_PER_PATH, raw_get
 
+from ctrlbus.annotate import Annotator
 from ctrlbus.capture import CaptureWriter, Direction, read_capture
 from ctrlbus.cli import main
 from ctrlbus.cli.replay_cmd import DEFAULT_MAX_GAP_S, cap_gaps
-from ctrlbus.errors import CaptureError
+from ctrlbus.cli.spy_cmd import Chunk, Printer, show_chunks
+from ctrlbus.errors import CaptureError, UsageError
 
 GET_BASE_STATUS = "10 02 F8 30 DA"
 CTRLBUS = [sys.executable, "-m", "ctrlbus"]
@@ -375,3 +379,29 @@ def test_zsh_completion_offers_the_choices_of_an_option(
     # (zsh's compgen leaves matching the typed prefix to zsh itself: an empty word shows all)
     assert zsh_offers(script, ["ctrlbus", "sim", "--quirks", ""], tmp_path) == ["none", "reference"]
     assert "a b.pcap" in zsh_offers(script, ["ctrlbus", "decode", ""], tmp_path)
+
+
+class _FillingDisk(io.BytesIO):
+    """A file on a disk that fills up after `room` bytes (as ENOSPC does: the write fails)."""
+
+    name = "/media/full/tap.pcap"
+
+    def __init__(self, room: int) -> None:
+        super().__init__()
+        self.room = room
+
+    def write(self, data: Any) -> int:
+        if self.tell() + len(data) > self.room:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return super().write(data)
+
+
+def test_a_full_disk_under_the_tap_names_the_file() -> None:
+    # The tap and the spy write through show_chunks; 24 bytes of header fit, the first record not.
+    capture = CaptureWriter(_FillingDisk(room=30), owns_stream=True)
+    chunk = Chunk(Direction.CORE_TO_BASE, bytes.fromhex(GET_BASE_STATUS), 1.0, bytes.fromhex(GET_BASE_STATUS))
+    printer = Printer(as_json=True, color=False, time_origin=0.0)
+    with pytest.raises(UsageError) as raised:
+        show_chunks([chunk], Annotator(timeout=0.1), capture, printer)
+    assert str(raised.value) == "cannot write /media/full/tap.pcap: No space left on device"
+    capture.close()  # the failed bytes are not written again (no second error from close)
