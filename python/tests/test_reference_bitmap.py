@@ -94,7 +94,7 @@ def test_every_reference_input_shows_on_its_own_bumper_or_cliff(label: str) -> N
     assert list(core.telemetry.cliffs_triggered) == want_cliffs
 
     snap = dashboard_snapshot(core)
-    check_snapshot(snap)
+    assert check_snapshot(snap) == []
     assert [(b["bit"], b["pressed"]) for b in snap["bumpers"]] == list(zip((0, 1), want_bumpers, strict=True))
     assert [(c["bit"], c["triggered"]) for c in snap["cliffs"]] == list(
         zip((2, 3, 4, 5), want_cliffs, strict=True)
