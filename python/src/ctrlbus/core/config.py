@@ -120,7 +120,7 @@ class CoreConfig:
     # §11.2 [core-config-retry]: attempts at the blob (and at 0x20 as a second view) while
     # connecting; then the Core goes on with what it has and asks again while polling.
     config_attempts: int = 2
-    config_retry_s: float = 2.0  # first wait before asking again while polling (doubling, up to 8 s)
+    config_retry_s: float = 2.0  # first wait before asking again while polling (doubling, up to 4 s)
     connect_interval_s: float = 0.5  # §11.1: CONNECT_BASE every 500 ms until answered
     flush_sync: bool = True  # §11.1: a 512-byte SYNC after each unanswered CONNECT_BASE
     decoder_timeout_s: float = 0.1  # §7.6: host-side inter-byte timeout

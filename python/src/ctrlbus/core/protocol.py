@@ -74,7 +74,7 @@ __all__ = ["CONFIG_RETRY_MAX_S", "PRIMARY_CONF_ATTEMPTS", "CoreProtocol"]
 # connecting (each failure in which the base was heard counts toward no disconnect) before the
 # Core goes on without a geometry; later asks while polling wait up to this long apart.
 PRIMARY_CONF_ATTEMPTS = 64
-CONFIG_RETRY_MAX_S = 8.0
+CONFIG_RETRY_MAX_S = 4.0
 
 
 class _Step(enum.Enum):
