@@ -240,7 +240,9 @@ class Exchange:
         periodic one whose next period has come (`period_due`) is superseded by it instead; the
         base counts as disconnected after `1 + retries` silent attempts in a row, or
         `line_fault_attempts` failed attempts in a row without an answer. CONNECT_BASE,
-        CORE_DISCONNECT and the flush have their own attempt limits (§11.1, §11.7)."""
+        CORE_DISCONNECT and the flush have their own attempt limits (§11.1, §11.7), and so have
+        the configuration reads (CONFIG_READS), whose failed attempts count toward a disconnect
+        only when silent (§11.2 [core-config-retry])."""
         config = self._config
         if silent:
             self._silent_streak += 1
