@@ -15,12 +15,16 @@ import json
 import statistics
 from pathlib import Path
 
+import pytest
 from core_fakes import FakeBase
 
+from ctrlbus import binconf
 from ctrlbus.base import BaseConfig, BaseStack
+from ctrlbus.cli import main
 from ctrlbus.cli.core_status import json_status, render_screen
 from ctrlbus.core import CoreSession
 from ctrlbus.core.session import ConnectionState
+from ctrlbus.errors import UsageError
 from ctrlbus.faults import FaultFilter, fault_models
 from ctrlbus.frame import StreamDecoder
 from ctrlbus.sim.base import SimulatedBase
@@ -144,6 +148,18 @@ def test_without_a_blob_the_fallback_is_shown_as_not_supported_apart_from_errors
     screen = render_screen(core)
     assert "0x21 not supported: fallback, not an error" in screen
     assert "errors none" in screen
+
+
+def test_the_sim_cli_takes_no_binary_config_and_refuses_it_with_a_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = tmp_path / "base.json"
+    config.write_text(binconf.example_config_text())
+    assert main(["sim", "--pty", "--no-binary-config", "--binary-config", str(config)]) == 2
+    error = capsys.readouterr().err.strip().splitlines()
+    assert len(error) == 1 and "--binary-config and --no-binary-config exclude each other" in error[0]
+    with pytest.raises(UsageError):
+        build_simulated_stack(SimSettings(binary_config=config, serve_binary_config=False))
 
 
 def test_readings_a_real_core_ignores_are_shown_marked_with_one_warning() -> None:

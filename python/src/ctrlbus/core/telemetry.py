@@ -276,6 +276,8 @@ class LinkTelemetry:
             "stray_answers": stats.stray_answers,
             "not_synced_reports": stats.not_synced_reports,
             "flushed_frames": stats.flushed_frames,
+            "damaged_config_answers": stats.damaged_config_answers,
+            "conf_adv_not_supported": stats.unsupported_conf_adv,
             "watchdog_reported": stats.watchdog_reported,
             "latency_samples": stats.latency_samples,
             "decoder": {
