@@ -145,6 +145,7 @@ def test_an_answer_that_fits_no_waiting_request_is_unpaired_not_a_format_error()
     assert answer.error == "unpaired" and answer.to is None
     assert answer.error_message is not None and "fits no outstanding request" in answer.error_message
     assert answer.guess == "GET_BASE_SENSOR_DATA"  # read by its size, marked as a guess
+    assert "unpaired: it fits none of the waiting requests (GET_BASE_STATUS)" in answer.notes
 
 
 def test_a_request_too_old_for_the_answer_is_not_paired() -> None:

@@ -656,6 +656,8 @@ class Annotator:
                         "OK payload bytes"
                         for item in reversed(waiting)
                     )
+                    waiting_names = ", ".join(item.name or "a request of unknown kind" for item in waiting)
+                    notes.append(f"unpaired: it fits none of the waiting requests ({waiting_names})")
                 else:
                     error_message = "answers a request of unknown kind: the OK payload cannot be read"
                 guess = guess_request(frame.payload)
