@@ -18,7 +18,7 @@ from core_fakes import FakeBase
 from ctrlbus import binconf
 from ctrlbus.cli.core_status import json_status, render_screen
 from ctrlbus.core import CoreSession
-from ctrlbus.core.geometry import geometry_from_conf, geometry_from_tree
+from ctrlbus.core.geometry import geometry_from_conf, geometry_from_tree, shared_bits
 from ctrlbus.frame import StreamDecoder
 from ctrlbus.messages import GetBaseConf, decode_answer
 from ctrlbus.vtime import VirtualBus
@@ -105,3 +105,20 @@ def test_every_reference_input_shows_on_its_own_bumper_or_cliff(label: str) -> N
     screen = render_screen(core)
     triggered = [str(bit) for bit, on in zip((2, 3, 4, 5), want_cliffs, strict=True) if on]
     assert f"cliff bits {', '.join(triggered) or 'none'}" in screen
+
+
+def test_a_blob_numbering_its_cliffs_from_0_is_read_by_bits_and_logged() -> None:
+    """Cliff ids 0-3 beside bumpers 0-1 (how ctrlbus's own example numbered them before): the ids
+    are bits, so two cliffs share the bumpers' bits, and the Core says so."""
+    tree: Any = json.loads(binconf.example_config_text())
+    cliffs = [entry for entry in tree["base"]["sensors"] if entry["type"] == {"dict": "cliff"}]
+    for index, entry in enumerate(cliffs):
+        entry["id"] = {"u8": index}
+    blob = binconf.encode(tree)
+    geometry = geometry_from_tree(binconf.decode(blob))
+    assert geometry is not None and geometry.cliff_bits == (0, 1, 2, 3)
+    assert shared_bits(geometry) == (0, 1)
+    core = CoreSession(port="fake")
+    bus = VirtualBus(core, FakeBase(blob=blob))
+    assert bus.run_until(lambda: core.connected, 5.0)
+    assert any("the same bit (0, 1)" in event.text for event in core.events())

@@ -30,6 +30,7 @@ __all__ = [
     "Mount",
     "geometry_from_conf",
     "geometry_from_tree",
+    "shared_bits",
 ]
 
 SOURCE_CONF = "GET_BASE_CONF"
@@ -192,6 +193,12 @@ def geometry_from_tree(tree: Mapping[str, JsonValue]) -> BaseGeometry | None:
         bumpers=bumpers,
         cliff_bits=cliffs,
     )
+
+
+def shared_bits(geometry: BaseGeometry) -> tuple[int, ...]:
+    """Bitmap bits that are both a bumper's and a cliff's: a blob that numbers its cliffs from 0
+    (as ctrlbus's own example did before issue 23) instead of by their bits."""
+    return tuple(sorted({bumper.bit for bumper in geometry.bumpers} & set(geometry.cliff_bits)))
 
 
 # How far the two sources may differ before it counts as a disagreement: the blob's float metres

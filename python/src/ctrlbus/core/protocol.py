@@ -27,6 +27,7 @@ from ctrlbus.core.geometry import (
     compare_geometries,
     geometry_from_conf,
     geometry_from_tree,
+    shared_bits,
 )
 from ctrlbus.core.health import HealthReader
 from ctrlbus.core.journal import Journal
@@ -532,6 +533,14 @@ class CoreProtocol:
         self._journal.changed("base")
 
     def _use_geometry(self, geometry: BaseGeometry | None) -> None:
+        shared = () if geometry is None else shared_bits(geometry)
+        if shared:
+            bits = ", ".join(map(str, shared))
+            self._log(
+                "core",
+                f"the configuration gives a bumper and a cliff sensor the same bit ({bits}): a cliff's "
+                "id is its bitmap bit (protocol §5.7: the reference's cliffs are 2-5)",
+            )
         self._telemetry.use_geometry(geometry)
         self._journal.changed("base")
 
