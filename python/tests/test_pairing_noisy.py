@@ -14,20 +14,23 @@ from typing import Any
 
 import pytest
 
-from ctrlbus.annotate import Annotator, FrameNote
+from ctrlbus.annotate import OK_SIZES, Annotator, FrameNote, ok_size_fits
 from ctrlbus.base import BaseConfig, BaseStack
 from ctrlbus.capture import Direction
 from ctrlbus.core import CoreSession
+from ctrlbus.errors import MessageError
 from ctrlbus.faults import FaultFilter, fault_models
 from ctrlbus.frame import encode
 from ctrlbus.messages import (
     GetBaseSensorData,
     GetBaseStatus,
     GetBaseStatusAnswer,
+    Response,
     SetVAndGetDeadreckon,
     SetVAndGetDeadreckonAnswer,
     Sync,
     answer_frame,
+    decode_answer,
     request_frame,
 )
 from ctrlbus.sim.base import SimulatedBase
@@ -154,3 +157,17 @@ def test_a_request_too_old_for_the_answer_is_not_paired() -> None:
     notes = frames((0.0, C, status), (5.0, B, ok))
     (answer,) = [note for note in notes if note.direction is B]
     assert answer.to is None and answer.error == "unpaired"
+
+
+@pytest.mark.parametrize("name", sorted(OK_SIZES))
+def test_the_pairing_size_table_agrees_with_the_message_codec(name: str) -> None:
+    """OK_SIZES (also in the dissector and the sigrok decoder) says a size fits exactly when the
+    codec decodes an OK of that size (zero bytes: no content to refuse)."""
+    for size in range(0, 520):
+        payload = bytes(size)
+        try:
+            decode_answer(name, Response.OK, payload)
+            decodes = True
+        except MessageError:
+            decodes = False
+        assert ok_size_fits(name, payload) == decodes, (name, size)

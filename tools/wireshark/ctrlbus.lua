@@ -481,7 +481,7 @@ local function ok_size_fits(name, payload)
     local sizes = name and OK_SIZES[name]
     if not sizes then return true end
     local n = #payload
-    if sizes == "blob" then return n > 0 end
+    if sizes == "blob" then return true end
     if sizes == "charger" then return n >= 2 and n == 2 + payload:byte(2) end
     for _, size in ipairs(sizes) do
         if n == size then return true end

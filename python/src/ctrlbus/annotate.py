@@ -112,7 +112,7 @@ _FLUSH_TIMEOUT_S = 1.0
 PAIR_DEPTH = 4
 PAIR_WINDOW_S = 1.0
 # OK payload sizes each request's answer may have (the same table as the Wireshark dissector's
-# pairing): a number, a tuple of numbers, "blob" (any non-empty) or "charger" (2 + probe_count).
+# pairing): a tuple of sizes, "blob" (any size) or "charger" (2 + probe_count).
 OK_SIZES: Mapping[str, Any] = {
     "CONNECT_BASE": (28, 39),
     "GET_BASE_CONF": (264,),
@@ -144,7 +144,7 @@ def ok_size_fits(name: str | None, payload: bytes) -> bool:
     if sizes is None:
         return True
     if sizes == "blob":
-        return len(payload) > 0
+        return True  # a blob of any size (the codec takes even an empty one)
     if sizes == "charger":
         return len(payload) >= 2 and len(payload) == 2 + payload[1]
     return len(payload) in sizes

@@ -311,7 +311,7 @@ def ok_size_fits(name, payload):
     if sizes is None:
         return True
     if sizes == 'blob':
-        return len(payload) > 0
+        return True
     if sizes == 'charger':
         return len(payload) >= 2 and len(payload) == 2 + payload[1]
     return len(payload) in sizes
