@@ -50,6 +50,7 @@ MODULE_MARKERS = {
     "test_release": ("packaging", "c_build"),
     "test_manifests": ("packaging", "c_build"),
     "test_c_consumers": ("c_build",),
+    "test_c_build_alone": ("c_build",),
     "test_minimal_base": ("c_build",),
     "test_mcu_ports": ("qemu",),
     "test_served_bases": ("qemu", "c_build"),
