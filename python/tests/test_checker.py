@@ -31,7 +31,6 @@ from support.broken_bases import (
     BROKEN_BASES,
     SEED,
     BrokenBase,
-    DropsBehindGarbage,
     LineFaultsAfterChecksumErrors,
     ReadsAnyLength,
     RewritingStack,
@@ -297,13 +296,6 @@ def test_a_base_that_behaves_as_the_reference_gets_warnings_that_name_it_and_no_
     for result in report.results:
         if result.status is Status.WARN:
             assert "the reference" in result.message, explain(report)
-
-
-def test_a_base_that_drops_a_request_without_an_error_answer_fails() -> None:
-    report = run_checks_against(DropsBehindGarbage(simulated_base()), fast(only={NUMBER_OF["garbage"]}))
-    (result,) = report.results
-    assert result.status is Status.FAIL, explain(report)
-    assert "no ERROR said it was dropped" in result.message
 
 
 def test_a_probe_answered_by_a_line_fault_is_sent_again_as_a_core_does() -> None:

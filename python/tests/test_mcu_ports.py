@@ -31,14 +31,14 @@ from typing import TypeVar
 import pytest
 from support.base_harness import REPO, Process, exclusive
 from support.checker_runs import TIMED
-from support.qemu import EMULATOR_CHECKER_ARGS, connect_tcp_when_listening, qemu_command
+from support.qemu import BUILD_LOCK, EMULATOR_CHECKER_ARGS, connect_tcp_when_listening, qemu_command
 from test_dashboard_browser import free_port
 from test_minimal_base import assert_checker_passes
 
 PORTS_SOURCES = REPO / "c" / "ports"
 PORTS_BUILD = REPO / "build" / "ports"
 
-BOARDS = ("uno", "microbit", "netduinoplus2", "sifive_e")  # those of QEMU_BOARDS that c/ports builds
+BOARDS = ("uno", "microbit", "netduinoplus2", "sifive_e")  # mps2-an385 runs in test_firmware.py
 TOOLS = ("avr-gcc", "arm-none-eabi-gcc", "riscv64-unknown-elf-gcc", "qemu-system-avr", "qemu-system-arm",
          "qemu-system-riscv32")  # fmt: skip
 # Every emulated board gets EMULATOR_CHECKER_ARGS (test_firmware.py). On the Uno it matters most:
@@ -64,7 +64,7 @@ def port_images() -> Path:
     for tool in TOOLS:
         if shutil.which(tool) is None:
             pytest.fail(f"{tool} is missing: scripts/setup.sh installs it")
-    with exclusive("ports-build"):
+    with exclusive(BUILD_LOCK):
         build = subprocess.run(
             ["make", "-C", str(PORTS_SOURCES), f"O={PORTS_BUILD}"],
             capture_output=True,
@@ -174,7 +174,7 @@ def uno_chip_stack(port_images: Path, tmp_path_factory: pytest.TempPathFactory) 
     """The checker passes on the Uno's chip image (receive interrupt, idle sleep: what QEMU cannot
     run) under simavr, with USART0 on a pty; returns how deep its stack went meanwhile (B), read
     from simavr's dump of the data memory when it stops."""
-    with exclusive("ports-build"):
+    with exclusive(BUILD_LOCK):
         build = subprocess.run(
             ["make", "-C", str(PORTS_SOURCES), f"O={PORTS_BUILD}", "simavr"],
             capture_output=True,

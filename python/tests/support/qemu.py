@@ -11,8 +11,19 @@ from pathlib import Path
 
 from support.base_harness import REPO, Process
 
-FIRMWARE_SOURCES = REPO / "c" / "firmware"
-FIRMWARE_BUILD = REPO / "build" / "firmware"
+FIRMWARE_SOURCES = REPO / "c" / "ports"
+FIRMWARE_BUILD = REPO / "build" / "ports" / "mps2_an385"
+FIRMWARE_BASE = FIRMWARE_BUILD / "simbase-qemu.elf"
+FIRMWARE_BASE_SDK2020 = FIRMWARE_BUILD / "simbase-sdk2020-qemu.elf"
+FIRMWARE_ECHO = FIRMWARE_BUILD / "uart-echo-qemu.elf"
+# The lock (support.base_harness.exclusive) of every build into build/ports: the firmware's and
+# the other boards' share that directory and c/ports/Makefile.
+BUILD_LOCK = "ports-build"
+
+
+def build_firmware_command() -> list[str]:
+    """The make command that builds the mps2-an385 images (the board's target of c/ports/Makefile)."""
+    return ["make", "-C", str(FIRMWARE_SOURCES), f"O={FIRMWARE_BUILD.parent}", "mps2_an385"]
 
 
 # board: the QEMU program and machine, and how an image is loaded (the image's path follows)

@@ -291,6 +291,41 @@ OK_ANSWERS = ('BASE_CMD', 'CONNECT_BASE', 'GET_BASE_CONF', 'GET_BASE_CONF_ADV', 
               'HEALTH_CLR_ERROR')
 
 
+# Pairing by order, timing and size, as `ctrlbus decode` (ctrlbus.annotate): the requests waiting
+# are the last PAIR_DEPTH ones, none older than PAIR_WINDOW_S; an answer goes to the newest one it
+# fits, and that one and every older one stop waiting. OK payload sizes per request:
+PAIR_DEPTH = 4
+PAIR_WINDOW_S = 1.0
+OK_SIZES = {
+    'CONNECT_BASE': (28, 39), 'GET_BASE_CONF': (264,), 'GET_BASE_CONF_ADV': 'blob',
+    'GET_BASE_STATUS': (2,), 'GET_BASE_MOTOR_DATA': (9,), 'GET_BASE_SENSOR_DATA': (64,),
+    'GET_BASE_BUMPER_DATA': (1, 2, 3, 4), 'GET_CHARGER_DATA': 'charger',
+    'SET_V_AND_GET_DEADRECKON': (13, 17), 'POLL_BASE_CMD': (0, 2), 'HEALTH_GET_HEALTH': (2,),
+    'HEALTH_GET_ERROR': (36,), 'SET_BASE_MOTOR': (0,), 'POLL_BASE_ANS_CMD': (0,), 'SEND_EVENT': (0,),
+    'HEALTH_CLR_ERROR': (0,), 'BASE_CMD': (0,),
+}
+
+
+def ok_size_fits(name, payload):
+    sizes = OK_SIZES.get(name or '')
+    if sizes is None:
+        return True
+    if sizes == 'blob':
+        return True
+    if sizes == 'charger':
+        return len(payload) >= 2 and len(payload) == 2 + payload[1]
+    return len(payload) in sizes
+
+
+def answer_fits(request, cmd, payload):
+    '''Whether an answer (cmd, payload) can answer `request` = (name, cmd, raw, time).'''
+    if cmd in (0x00, 0x01):
+        return request[1] == cmd
+    if cmd == 0x02:
+        return request[1] not in (0x00, 0x01) and ok_size_fits(request[0], payload)
+    return True
+
+
 def guess_request(payload):
     found = []
     for name in OK_ANSWERS:
@@ -452,8 +487,10 @@ def fields_text(context, fields):
 
 class Stream:
     '''One direction's bytes to frames and events, rules D1-D5. Bytes come in one at a time as
-    (value, ss, es, time); `feed` returns what they completed: ('frame', bytes) and ('event',
-    kind, first, last, extra) with `bytes` a list of (value, ss, es).'''
+    (value, ss, es) with a time (any unit: the decoder passes sample numbers, and the timeout in
+    samples); `feed` returns what they completed: ('frame', bytes) and ('event', kind, first,
+    last, extra) with `bytes` a list of (value, ss, es). `idle` is told the time while the line
+    is idle, so that the inter-byte timeout fires without a next byte.'''
 
     def __init__(self, max_frame, timeout):
         self.max_frame, self.timeout = max_frame, timeout
@@ -464,13 +501,18 @@ class Stream:
         self.last_time = None
 
     def feed(self, byte, time):
+        out = self.idle(time)
+        self.last_time = time
+        self.pending.append(byte)
+        self.scan(out, flush=False)
+        return out
+
+    def idle(self, time):
+        '''The time is now `time`: a candidate older than the timeout fails (D5).'''
         out = []
         if self.pending and self.timeout and time is not None and self.last_time is not None \
                 and time - self.last_time > self.timeout:
             self.scan(out, flush=True)
-        self.last_time = time
-        self.pending.append(byte)
-        self.scan(out, flush=False)
         return out
 
     def fail(self, out, kind, size, span, extra=None):
@@ -571,30 +613,44 @@ class Decoder(srd.Decoder):
     def reset(self):
         self.samplerate = None
         self.streams = None
-        self.outstanding = None  # name of the request waiting for its answer (may be None)
-        self.waiting = False
+        self.waiting = []  # (name, cmd, raw, time) of the requests waiting for an answer, oldest first
 
     def metadata(self, key, value):
         if key == srd.SRD_CONF_SAMPLERATE:
             self.samplerate = value
+            self.set_timeout()
 
     def start(self):
         self.out_ann = self.register(srd.OUTPUT_ANN)
-        timeout = float(self.options['timeout_ms']) / 1000.0
         max_frame = int(self.options['max_frame'])
-        self.streams = (Stream(max_frame, timeout), Stream(max_frame, timeout))
+        self.streams = (Stream(max_frame, 0), Stream(max_frame, 0))
+        self.set_timeout()
         self.request_line = 0 if self.options['requests'] == 'rx' else 1
+
+    def set_timeout(self):
+        '''Time is counted in sample numbers (exact, and what sigrok gives): the timeout in
+        samples needs the sample rate; without one it stays off.'''
+        if self.streams is None or not self.samplerate:
+            return
+        samples = float(self.options['timeout_ms']) * self.samplerate / 1000.0
+        for stream in self.streams:
+            stream.timeout = samples
 
     def put_ann(self, side, kind, ss, es, texts):
         self.put(ss, es, self.out_ann, [side * 3 + kind, texts])
 
     def decode(self, ss, es, data):
         ptype, rxtx, pdata = data
-        if ptype != 'DATA':
-            return
         side = CORE if rxtx == self.request_line else BASE
-        time = ss / float(self.samplerate) if self.samplerate else None
-        for item in self.streams[side].feed((pdata[0], ss, es), time):
+        if ptype == 'IDLE':
+            # uart reports each frame time of idle line: the timeout fires on idle time, not
+            # only when a next byte comes (which never happens at the end of a recording).
+            items = self.streams[side].idle(es)
+        elif ptype == 'DATA':
+            items = self.streams[side].feed((pdata[0], ss, es), ss)
+        else:
+            return
+        for item in items:
             if item[0] == 'frame':
                 self.show_frame(side, item[1])
             else:
@@ -635,6 +691,9 @@ class Decoder(srd.Decoder):
         self.put_ann(side, 0, frame[-1][1], frame[-1][2],
                      ['checksum 0x%02X' % frame[-1][0], 'checksum', 'X'])
 
+    def frame_time(self, frame):
+        return frame[-1][1] / float(self.samplerate) if self.samplerate else None
+
     def show_frame(self, side, frame):
         self.show_parts(side, frame)
         header = 2 if frame[0][0] == FLAG_STANDARD else 3
@@ -653,16 +712,24 @@ class Decoder(srd.Decoder):
                 error = 'format'
             except Unsupported:
                 error = 'unsupported'
-            self.outstanding, self.waiting = name, True
+            raw = bytes(value for value, _, _ in frame)
+            self.waiting = (self.waiting + [(name, cmd, raw, self.frame_time(frame))])[-PAIR_DEPTH:]
         else:
             name = RESPONSES.get(cmd)
             label = name or '0x%02X' % cmd
             line_fault = cmd == 0x03 and len(payload) == 2 and \
                 (payload[0] | payload[1] << 8) < LINE_FAULT_LIMIT
             to = None
-            if self.waiting and not line_fault:
-                to = self.outstanding
-                self.waiting = False
+            now = self.frame_time(frame)
+            if now is not None:
+                self.waiting = [item for item in self.waiting
+                                if item[3] is None or now - item[3] <= PAIR_WINDOW_S]
+            if not line_fault:
+                for index in range(len(self.waiting) - 1, -1, -1):
+                    if answer_fits(self.waiting[index], cmd, payload):
+                        to = self.waiting[index][0]
+                        del self.waiting[:index + 1]
+                        break
                 if to is not None:
                     label += ' to ' + to
             context = 'OK to %s' % to if cmd == 0x02 else label.split(' ')[0]
@@ -670,6 +737,8 @@ class Decoder(srd.Decoder):
                 error = 'unpaired'
                 guess = guess_request(payload)
                 if guess is not None:
+                    # read by its size, as `ctrlbus decode` does, and said to be a guess
+                    label += ' (a guess: to %s)' % guess
                     context = 'OK to %s' % guess
                     fields = answer_fields(guess, cmd, payload)
             else:
