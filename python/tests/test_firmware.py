@@ -42,7 +42,6 @@ from support.qemu import (
 
 from ctrlbus.frame import Frame, encode
 
-
 # QEMU hands the UART a byte per turn of its event loop: a few kilobytes take 1-2 s on an idle host,
 # and 4083 of 4096 bytes had come after 10 s once under stress-ng --cpu 2. Nothing is judged by
 # speed here, only that every byte comes back.
