@@ -83,10 +83,12 @@ FIXTURE_MARKERS = {
 
 # The modules whose tests run again on Python 3.10 (a name ends the prefix: test_core matches
 # test_core_cli and the test_core_* modules of core/): every module imported, the packaging and
-# the CLI, the typed core and what uses compat.StrEnum (frames, faults, quirks, the checker).
+# the CLI, the typed core, what uses compat.StrEnum (frames, faults, quirks, the checker) and the
+# ROS 2 bridge (ROS 2 Humble's Python is 3.10).
 PY310_MODULES = (
     "test_imports", "test_package_face", "test_packaging", "test_setup", "test_cli", "test_sim_cli",
     "test_core", "test_frame", "test_messages", "test_faults", "test_quirks", "test_checker",
+    "test_ros2",
 )  # fmt: skip
 
 # Soaks and long end-to-end runs (a minute or more of a core on this machine).
