@@ -5,9 +5,10 @@
 SHELL := /bin/bash
 VENV  := .venv
 VENV310 := .venv310
-# The venv's Python once `setup` made it; before that the system's (the scripts that `arduino`
-# and `release-tag` run use nothing but the standard library).
-PY    := $(if $(wildcard $(VENV)/bin/python),$(VENV)/bin/python,python3)
+# The venv's Python, for the jobs that run `setup` first; the scripts that `arduino` and
+# `release-tag` run use nothing but the standard library, so they take the system's.
+PY    := $(VENV)/bin/python
+SYSTEM_PY := python3
 # Ninja when it is installed (setup installs it), else CMake's default generator (make).
 CMAKE_GENERATOR ?= $(if $(shell command -v ninja),Ninja,Unix Makefiles)
 BUILD := build
@@ -135,7 +136,7 @@ consumers: setup
 # one in c/include/ctrlbus/ctrlbus.h; python/tests/test_release.py checks every artefact.
 DIST ?= dist
 arduino:
-	@$(PY) scripts/arduino_zip.py $(DIST)
+	@$(SYSTEM_PY) scripts/arduino_zip.py $(DIST)
 
 release: setup
 	@version=$$($(PY) scripts/ctrlbus_version.py) && mkdir -p $(DIST) && \
@@ -155,5 +156,5 @@ clean:
 # HEAD, the tag the README's FetchContent recipe names. Refuses a tree with uncommitted changes.
 release-tag:
 	@git diff --quiet HEAD || { echo "release-tag: commit your changes first" >&2; exit 2; }
-	@version=$$($(PY) scripts/ctrlbus_version.py) && git tag -a "v$$version" -m "ctrlbus $$version" && \
+	@version=$$($(SYSTEM_PY) scripts/ctrlbus_version.py) && git tag -a "v$$version" -m "ctrlbus $$version" && \
 	  echo "tagged v$$version: git push origin v$$version"
