@@ -151,7 +151,7 @@ TARGETS=${TARGETS:-"cortex-m0plus cortex-m3 cortex-m4 atmega328p rv32imac"}
 # The minimal configuration: every switch of ctrlbus/ctrlbus_config.h off (what remains: the 13
 # mandatory requests, SYNC/ECHO, REBOOT/DFU, the error answers, the watchdog, the timeout).
 MINIMAL=(-DCTRLBUS_CONFIG_HEALTH=0 -DCTRLBUS_CONFIG_COMMAND_QUEUE=0 -DCTRLBUS_CONFIG_LIMITS=0
-  -DCTRLBUS_CONFIG_PROFILE_SDK2020=0 -DCTRLBUS_CONFIG_CONF_ADV=0 -DCTRLBUS_CONFIG_MASTER_CODECS=0 -DCTRLBUS_DECODER_FAST=0)
+  -DCTRLBUS_CONFIG_PROFILE_SDK2020=0 -DCTRLBUS_CONFIG_CONF_ADV=0 -DCTRLBUS_CONFIG_MASTER_CODECS=0)
 WARNINGS=(-Wall -Wextra -Wpedantic -Wconversion -Wsign-conversion -Werror)
 base_roots=$(declared_functions c/include/ctrlbus/base.h | sort -u)
 

@@ -53,11 +53,6 @@ static void clear_flags(ctrlbus_base_t *base, uint8_t flags)
 
 /* ---- receive ring --------------------------------------------------------------------------- */
 
-/* poll() hands the decoder a run of ring bytes shorter than this one byte at a time through
- * ctrlbus_decoder_push(), and a longer run through ctrlbus_decoder_take(), which checks a whole
- * frame in place: short runs are mostly frame pieces, which take() would copy anyway. */
-#define PUSH_BELOW 16u
-
 size_t ctrlbus_base_feed(ctrlbus_base_t *base, const uint8_t *data, size_t len)
 {
     if (base == NULL || base->config == NULL || data == NULL) {
@@ -840,29 +835,10 @@ static inline unsigned drain(ctrlbus_base_t *base, uint32_t now_ms, ctrlbus_rx_t
     return results;
 }
 
-#if CTRLBUS_DECODER_FAST
-/* Pushes the *run ring bytes from rx_tail on, one push() each (its inline path), up to the first
- * result, which it returns (NONE: none), and sets *run to the bytes it took. Out of line: its
- * locals are not on the stack while the answers are written. */
-static NOINLINE ctrlbus_rx_t push_run(ctrlbus_base_t *base, size_t *run, uint32_t now_ms,
-                                      ctrlbus_frame_t *frame)
-{
-    const uint8_t *bytes = base->config->rx_ring + base->rx_tail;
-    ctrlbus_rx_t rx = CTRLBUS_RX_NONE;
-    size_t taken = 0;
-    while (taken < *run && (rx = ctrlbus_decoder_push(&base->decoder, bytes[taken], now_ms,
-                                                      frame)) == CTRLBUS_RX_NONE) {
-        taken++;
-    }
-    if (rx != CTRLBUS_RX_NONE && rx != CTRLBUS_RX_BUSY) {
-        taken++; /* the byte that completed the result was taken too */
-    }
-    *run = taken;
-    return rx;
-}
-
-/* The same through one take(), which hands a whole frame out in place, its payload still in the
- * ring; its own frame is small, since take's path is poll's deepest. */
+/* Hands the decoder the *run ring bytes from rx_tail on through one take(), which hands a whole
+ * frame out in place (its payload still in the ring) and copies a frame's piece in one run; sets
+ * *run to the bytes it took and returns the first result (NONE: none). Out of line: its locals are
+ * not on the stack while the answers are written. */
 static NOINLINE ctrlbus_rx_t take_run(ctrlbus_base_t *base, size_t *run, uint32_t now_ms,
                                       ctrlbus_frame_t *frame)
 {
@@ -872,7 +848,6 @@ static NOINLINE ctrlbus_rx_t take_run(ctrlbus_base_t *base, size_t *run, uint32_
     *run -= left;
     return rx;
 }
-#endif
 
 void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
 {
@@ -897,18 +872,9 @@ void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
             ctrlbus_decoder_tick(&base->decoder, now_ms);
             rx = CTRLBUS_RX_BUSY; /* drain: the decoder's own results */
         } else {
-#if CTRLBUS_DECODER_FAST == 0
-            /* Without the bulk path, one push per byte (BUSY: results were waiting; the byte is
-             * pushed again after them). */
-            rx = ctrlbus_decoder_push(&base->decoder, config->rx_ring[tail], now_ms, &frame);
-            used = rx != CTRLBUS_RX_BUSY;
-#else
-            /* A run shorter than PUSH_BELOW byte by byte, a longer one through take() (both
-             * from tail). */
+            /* The run of bytes up to head or the ring's end, through take(). */
             used = (size_t)((head > tail ? head : config->rx_ring_size) - tail);
-            rx = used < PUSH_BELOW ? push_run(base, &used, now_ms, &frame)
-                                   : take_run(base, &used, now_ms, &frame);
-#endif
+            rx = take_run(base, &used, now_ms, &frame);
         }
         /* A result is answered before its bytes' slots are released, since a frame taken in
          * place still lies in them. */

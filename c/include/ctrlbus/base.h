@@ -372,10 +372,8 @@ size_t ctrlbus_base_feed(ctrlbus_base_t *base, const uint8_t *data, size_t len);
  * in the handlers' calls and in ctrlbus_base_counters(). A write callback that fails cuts that
  * answer short; the stack carries on with the next.
  * Not ISR-safe (main loop only). Cost: the decoder's cost for the bytes taken (O(1) per byte on a
- * clean link; frame.h gives the worst case: with the decoder's bulk path (CTRLBUS_DECODER_FAST 1
- * or 2) a run of fewer than 16 bytes in the ring goes through ctrlbus_decoder_push() one byte at
- * a time and a longer one through ctrlbus_decoder_take(), whichever costs less; without it every
- * byte is pushed, and its ring slot released right after, or after the answers it completes),
+ * clean link; frame.h gives the worst case: the ring's bytes go through ctrlbus_decoder_take() one
+ * contiguous run at a time, and their slots are released after the answers they complete),
  * plus for each request one look-up in the request table (17 rows), its handler, and the
  * answer's size in byte visits (one write call per run of integer fields, per text byte, and for
  * the header and the checksum); no work beyond the ring's content at entry. Stack: see

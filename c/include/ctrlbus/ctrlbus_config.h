@@ -81,24 +81,6 @@
 #define CTRLBUS_CONFIG_MASTER_CODECS 1
 #endif
 
-/* The frame decoder's bulk path (ctrlbus_decoder_feed() in ctrlbus/frame.h): 0 = off, the
- * compact core alone; 1 = on, the bulk path with shortcuts for the most common feeds (a whole
- * frame, a frame's start); 2 = the compact core with the few fast steps an -Os build needs (a
- * whole frame checked in place by take, a frame's known remainder copied in one run, push's
- * inline path). The default is 1, or 2 when compiling with -Os (as MCU firmware is). Every level
- * gives the same results on the wire; the levels trade code for speed (docs/performance.md). The
- * minimal configuration has it off. Size effect (frame.c's decoder, cortex-m0plus -Os): level 0
- * about 0.7 KB linked into a base that uses push, next and tick; level 2 about 1.4 KB in the
- * default base; level 1 about 3.5 KB (ctrlbus/frame.h at ctrlbus_decoder_feed()). The default
- * base stack is 3,966 B at level 0, 4,842 B at level 2 and 6,646 B at level 1. */
-#ifndef CTRLBUS_DECODER_FAST
-#if defined(__OPTIMIZE_SIZE__)
-#define CTRLBUS_DECODER_FAST 2
-#else
-#define CTRLBUS_DECODER_FAST 1
-#endif
-#endif
-
 /* The profile a config whose `profile` is left zero gets (ctrlbus_base_profile_t, base.h). Define
  * it for the whole build, e.g. -DCTRLBUS_DEFAULT_PROFILE=CTRLBUS_PROFILE_SDK2020, to build a
  * firmware for the vendor's 2020 master SDK without touching its code (c/firmware builds its
