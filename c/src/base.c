@@ -77,6 +77,24 @@ size_t ctrlbus_base_feed(ctrlbus_base_t *base, const uint8_t *data, size_t len)
     return taken;
 }
 
+bool ctrlbus_base_feed_byte(ctrlbus_base_t *base, uint8_t byte)
+{
+    if (base == NULL || base->config == NULL) {
+        return false;
+    }
+    const ctrlbus_base_config_t *config = base->config;
+    uint16_t head = base->rx_head;
+    uint16_t next = (uint16_t)(head + 1u == config->rx_ring_size ? 0u : head + 1u);
+    if (next == base->rx_tail) {
+        base->rx_dropped += 1u;
+        return false;
+    }
+    config->rx_ring[head] = byte;
+    CTRLBUS_RING_FENCE(); /* the byte is in the ring before the index says so */
+    base->rx_head = next;
+    return true;
+}
+
 /* ---- health registry ------------------------------------------------------------------------ */
 
 #if CTRLBUS_CONFIG_HEALTH
@@ -862,6 +880,9 @@ void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
     /* Each turn handles the ring's bytes from rx_tail (which only poll writes: no copy is kept,
      * which keeps poll's frame small), and the last one, with the ring done, the inter-byte
      * timeout. */
+    if (head == base->rx_tail && !ctrlbus_decoder_busy(&base->decoder)) {
+        return; /* nothing received, nothing held that could time out or wait */
+    }
     for (;;) {
         const ctrlbus_base_config_t *config = base->config;
         uint16_t tail = base->rx_tail;

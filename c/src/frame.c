@@ -833,6 +833,26 @@ ctrlbus_rx_t ctrlbus_decoder_take(ctrlbus_decoder_t *decoder, const uint8_t **da
                 return take_frame(d, in, size, frame);
             }
         }
+    } else if (!(d->state & STATE_WAITING) && in != NULL && n != 0 && d->start == 0u &&
+               d->complete_at > d->end && (now_ms == d->last_byte_ms || !timed_out(d, now_ms))) {
+        /* More of the candidate at the front whose size is known, with no timeout to apply: the
+         * bytes up to its end go in as one run, as feed() would take them. */
+        uint32_t size = d->complete_at;
+        size_t run = (size_t)(size - d->end);
+        if (run > n) {
+            run = n;
+        }
+        append(d, in, run);
+        d->last_byte_ms = now_ms;
+        *data = in + run;
+        *len = n - run;
+        if (d->end < size) {
+            return CTRLBUS_RX_NONE;
+        }
+        if (size > header_size(d->buffer[0]) + 1u && candidate_xor(d->buffer, size) == 0u) {
+            return take_frame(d, d->buffer, size, frame);
+        }
+        (void)scan(d); /* LEN 0 or a checksum error: the scan settles it, next() hands it out */
     }
     return take_general(d, data, len, now_ms, frame);
 }

@@ -363,6 +363,12 @@ int32_t ctrlbus_base_init(ctrlbus_base_t *base, const ctrlbus_base_config_t *con
  * Stack: 32 bytes on a Cortex-M0+ at -Os (all of it in the interrupt's frame). */
 size_t ctrlbus_base_feed(ctrlbus_base_t *base, const uint8_t *data, size_t len);
 
+/* Puts one received byte into the ring: a UART receive interrupt's call. Returns true when it was
+ * taken, false when the ring was full (the byte is dropped and counted in rx_dropped) or base is
+ * NULL. The same contract as ctrlbus_base_feed() with len 1 (ISR-safe, single producer), without
+ * its loop. Cost: O(1), one fence. */
+bool ctrlbus_base_feed_byte(ctrlbus_base_t *base, uint8_t byte);
+
 /* The main loop's work, at time now_ms: runs the motor watchdog (stopping the wheels through
  * stop_motors or set_wheel_speeds when no CTRL_BUS frame came for more than watchdog_ms, once per
  * silence; a stop of moving wheels counts a trip and registers the health warning
