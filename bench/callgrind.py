@@ -82,7 +82,15 @@ def callgrind(ctx: BenchContext, binary: Path, mode: str, stream: Path, *args: s
     out_file = ctx.work_dir / f"callgrind.{binary.name}.{mode}.{stream.stem}.out"
     stdout = run_command(
         ctx,
-        ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out_file}", str(binary), mode, str(stream), *args],
+        [
+            "valgrind",
+            "--tool=callgrind",
+            f"--callgrind-out-file={out_file}",
+            str(binary),
+            mode,
+            str(stream),
+            *args,
+        ],
     )
     match = _TOTAL.search(out_file.read_text())
     if match is None:

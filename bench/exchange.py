@@ -209,9 +209,14 @@ def run(ctx: BenchContext) -> Findings:
             for who, binary in (("ours", ours_bin), ("floor", floor_bin)):
                 base = callgrind(ctx, binary, "baseline", path, slots)
                 measured = callgrind(ctx, binary, "firmware", path, slots)
-                if measured.report["exchanges"] != count or measured.report["answer_bytes"] != count * answer_size:
+                if (
+                    measured.report["exchanges"] != count
+                    or measured.report["answer_bytes"] != count * answer_size
+                ):
                     raise BenchError(f"{who} {kind} ({opt}): {measured.report}")
-                figures[f"{level}_{kind}_{who}_per_exchange"] = round(per_item(measured, base, "exchanges"), 1)
+                figures[f"{level}_{kind}_{who}_per_exchange"] = round(
+                    per_item(measured, base, "exchanges"), 1
+                )
                 if who == "ours" and kind == "set_v":
                     stream_bytes = measured.report["bytes"]
                     # (main: the harness's timeline, whose own cost the baseline mostly cancels)
@@ -225,7 +230,9 @@ def run(ctx: BenchContext) -> Findings:
             parsed = callgrind(ctx, peer_bin, "parse", peer_path)
             if parsed.report["messages"] != count:
                 raise BenchError(f"MAVLink ({opt}) parsed {parsed.report['messages']} of {count} messages")
-            figures[f"{level}_{kind}_mavlink_parse_per_message"] = round(per_item(parsed, base, "messages"), 1)
+            figures[f"{level}_{kind}_mavlink_parse_per_message"] = round(
+                per_item(parsed, base, "messages"), 1
+            )
 
             ours = figures[f"{level}_{kind}_ours_per_exchange"]
             floor = figures[f"{level}_{kind}_floor_per_exchange"]
@@ -270,6 +277,6 @@ def run(ctx: BenchContext) -> Findings:
         "sources": [str(path.relative_to(BENCH_DIR.parent)) for path in sorted(C_SRC.glob("*.c"))],
         "builds": builds,
         "profile_per_exchange": profile,
-        "mcu_load": f"instructions per exchange x {EXCHANGES_PER_S}/s / {MCU_HZ} (x86-64 instructions as a proxy)",
+        "mcu_load": f"instructions per exchange x {EXCHANGES_PER_S}/s / {MCU_HZ} (x86-64 as a proxy)",
     }
     return Findings(MEASURED, figures, rows, [], details)
