@@ -74,12 +74,12 @@ static int32_t status(void *context, ctrlbus_get_base_status_answer_t *out)
     return CTRLBUS_OK;
 }
 
-static void isr_byte(void *base, uint8_t byte)
+static TIMELINE_ENTRY void isr_byte(void *base, uint8_t byte)
 {
     (void)ctrlbus_base_feed_byte(base, byte);
 }
 
-static void main_poll(void *base, uint32_t now_ms)
+static TIMELINE_ENTRY void main_poll(void *base, uint32_t now_ms)
 {
     ctrlbus_base_poll(base, now_ms);
 }

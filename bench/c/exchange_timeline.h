@@ -9,7 +9,7 @@
  * (17 + 18 slots) sees about 3.2 polls, one of which finds the whole request and writes the
  * answer, and the exchanges follow each other as fast as the line allows (~330 a second).
  *
- * The includer defines the two things a firmware has:
+ * The includer defines the two entry points a firmware has:
  *   static void isr_byte(void *base, uint8_t byte);       the receive interrupt, one byte
  *   static void main_poll(void *base, uint32_t now_ms);   the main loop's call, once per ms
  * and calls run_timeline(). In baseline mode both are replaced by stores the compiler cannot drop,
@@ -34,8 +34,17 @@ static size_t timeline_frame_size(const unsigned char *data, size_t left)
     return size <= left ? size : 0u;
 }
 
-static void isr_byte(void *base, uint8_t byte);
-static void main_poll(void *base, uint32_t now_ms);
+/* Functions of their own in both harnesses, as in a firmware: the hardware enters the interrupt
+ * handler for each byte, and the main loop calls its poll; neither is inlined into this loop
+ * (which would keep the ring's state in registers from one byte to the next, as no interrupt
+ * handler can). */
+#if defined(__GNUC__)
+#define TIMELINE_ENTRY __attribute__((noinline))
+#else
+#define TIMELINE_ENTRY
+#endif
+static TIMELINE_ENTRY void isr_byte(void *base, uint8_t byte);
+static TIMELINE_ENTRY void main_poll(void *base, uint32_t now_ms);
 
 /* Runs every request of data[0..size) through the timeline, each followed by answer_slots idle
  * slots. Returns the number of exchanges, or -1 when the file is not whole frames. */

@@ -159,7 +159,7 @@ static void step(floor_base_t *b, uint8_t byte)
     b->checksum ^= byte;
 }
 
-static void isr_byte(void *base, uint8_t byte)
+static TIMELINE_ENTRY void isr_byte(void *base, uint8_t byte)
 {
     floor_base_t *b = base;
     uint16_t head = b->head;
@@ -170,7 +170,7 @@ static void isr_byte(void *base, uint8_t byte)
     }
 }
 
-static void main_poll(void *base, uint32_t now_ms)
+static TIMELINE_ENTRY void main_poll(void *base, uint32_t now_ms)
 {
     floor_base_t *b = base;
     (void)now_ms;

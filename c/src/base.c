@@ -880,15 +880,15 @@ void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
     /* Each turn handles the ring's bytes from rx_tail (which only poll writes: no copy is kept,
      * which keeps poll's frame small), and the last one, with the ring done, the inter-byte
      * timeout. */
-    if (head == base->rx_tail && !ctrlbus_decoder_busy(&base->decoder)) {
-        return; /* nothing received, nothing held that could time out or wait */
-    }
     for (;;) {
         const ctrlbus_base_config_t *config = base->config;
         uint16_t tail = base->rx_tail;
         ctrlbus_rx_t rx;
         size_t used = 0;
         if (tail == head) {
+            if (!ctrlbus_decoder_busy(&base->decoder)) {
+                return; /* nothing held that could time out, nothing waiting to be answered */
+            }
             /* The ring is done: the inter-byte timeout, then whatever it leaves to answer. */
             ctrlbus_decoder_tick(&base->decoder, now_ms);
             rx = CTRLBUS_RX_BUSY; /* drain: the decoder's own results */

@@ -623,9 +623,10 @@ static unsigned results_first(ctrlbus_decoder_t *d, uint32_t now_ms)
 static void append(ctrlbus_decoder_t *d, const uint8_t *bytes, size_t n)
 {
     uint8_t *dst = d->buffer + d->end;
+    const uint8_t *stop = bytes + n;
     d->end += (uint32_t)n;
-    for (size_t i = 0; i < n; i++) {
-        dst[i] = bytes[i];
+    while (bytes != stop) {
+        *dst++ = *bytes++;
     }
 }
 
