@@ -53,30 +53,6 @@ static void clear_flags(ctrlbus_base_t *base, uint8_t flags)
 
 /* ---- receive ring --------------------------------------------------------------------------- */
 
-size_t ctrlbus_base_feed(ctrlbus_base_t *base, const uint8_t *data, size_t len)
-{
-    if (base == NULL || base->config == NULL || data == NULL) {
-        return 0;
-    }
-    uint8_t *ring = base->config->rx_ring;
-    uint16_t size = base->config->rx_ring_size;
-    uint16_t head = base->rx_head; /* ours: only feed writes it */
-    uint16_t tail = base->rx_tail; /* one snapshot: space freed later is used by the next feed */
-    size_t taken = 0;
-    while (taken < len) {
-        uint16_t next = (uint16_t)(head + 1u == size ? 0u : head + 1u);
-        if (next == tail) {
-            base->rx_dropped += (uint32_t)(len - taken);
-            break;
-        }
-        ring[head] = data[taken++];
-        head = next;
-    }
-    CTRLBUS_RING_FENCE(); /* the bytes are in the ring before the index says so */
-    base->rx_head = head;
-    return taken;
-}
-
 bool ctrlbus_base_feed_byte(ctrlbus_base_t *base, uint8_t byte)
 {
     if (base == NULL || base->config == NULL) {
@@ -93,6 +69,22 @@ bool ctrlbus_base_feed_byte(ctrlbus_base_t *base, uint8_t byte)
     CTRLBUS_RING_FENCE(); /* the byte is in the ring before the index says so */
     base->rx_head = next;
     return true;
+}
+
+size_t ctrlbus_base_feed(ctrlbus_base_t *base, const uint8_t *data, size_t len)
+{
+    size_t taken = 0;
+    if (data != NULL) {
+        /* Byte by byte: each is published as soon as it is in (a caller that can wait, such as a
+         * host thread, may offer the rest again later). */
+        while (taken < len && ctrlbus_base_feed_byte(base, data[taken])) {
+            taken++;
+        }
+        if (taken < len && base != NULL && base->config != NULL) {
+            base->rx_dropped += (uint32_t)(len - taken - 1u); /* feed_byte counted the first */
+        }
+    }
+    return taken;
 }
 
 /* ---- health registry ------------------------------------------------------------------------ */
@@ -853,18 +845,16 @@ static inline unsigned drain(ctrlbus_base_t *base, uint32_t now_ms, ctrlbus_rx_t
     return results;
 }
 
-/* Hands the decoder the *run ring bytes from rx_tail on through one take(), which hands a whole
- * frame out in place (its payload still in the ring) and copies a frame's piece in one run; sets
- * *run to the bytes it took and returns the first result (NONE: none). Out of line: its locals are
- * not on the stack while the answers are written. */
-static NOINLINE ctrlbus_rx_t take_run(ctrlbus_base_t *base, size_t *run, uint32_t now_ms,
+/* Feeds the decoder the *run ring bytes from rx_tail on, up to the first result, which it returns
+ * (NONE: none), and sets *run to the bytes it took. A feed appends the bytes of a frame whose size
+ * is known in one run and checks them once, when the frame is complete; the base links neither
+ * push() nor take(). Out of line: its locals are not on the stack while the answers are
+ * written. */
+static NOINLINE ctrlbus_rx_t feed_run(ctrlbus_base_t *base, size_t *run, uint32_t now_ms,
                                       ctrlbus_frame_t *frame)
 {
-    const uint8_t *at = base->config->rx_ring + base->rx_tail;
-    size_t left = *run;
-    ctrlbus_rx_t rx = ctrlbus_decoder_take(&base->decoder, &at, &left, now_ms, frame);
-    *run -= left;
-    return rx;
+    *run = ctrlbus_decoder_feed(&base->decoder, base->config->rx_ring + base->rx_tail, *run, now_ms);
+    return ctrlbus_decoder_next(&base->decoder, frame);
 }
 
 void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
@@ -893,9 +883,9 @@ void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
             ctrlbus_decoder_tick(&base->decoder, now_ms);
             rx = CTRLBUS_RX_BUSY; /* drain: the decoder's own results */
         } else {
-            /* The run of bytes up to head or the ring's end, through take(). */
+            /* The run of bytes up to head or the ring's end. */
             used = (size_t)((head > tail ? head : config->rx_ring_size) - tail);
-            rx = take_run(base, &used, now_ms, &frame);
+            rx = feed_run(base, &used, now_ms, &frame);
         }
         /* A result is answered before its bytes' slots are released, since a frame taken in
          * place still lies in them. */

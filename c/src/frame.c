@@ -656,6 +656,9 @@ size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, siz
         }
         append(d, data + used, run);
         used += run;
+        if (d->end < d->complete_at) {
+            continue; /* still short of its size: a scan would find what it found before */
+        }
         if (scan(d)) {
             return used;
         }
@@ -699,63 +702,17 @@ ctrlbus_rx_t ctrlbus_decoder_next(ctrlbus_decoder_t *decoder, ctrlbus_frame_t *f
     return rx;
 }
 
-ctrlbus_rx_t ctrlbus_decoder_push(ctrlbus_decoder_t *decoder, uint8_t byte, uint32_t now_ms,
-                                  ctrlbus_frame_t *frame)
+/* ctrlbus_decoder_push() for every byte but those inside a candidate whose size is known (its
+ * own function, so that the common byte's path saves no registers). */
+RARE static ctrlbus_rx_t push_settle(ctrlbus_decoder_t *d, uint8_t byte, uint32_t now_ms,
+                                     ctrlbus_frame_t *frame)
 {
-    ctrlbus_decoder_t *d = decoder;
-    if (d == NULL) {
-        return CTRLBUS_RX_NONE;
-    }
-    uint32_t end = d->end;
-    uint32_t complete_at = d->complete_at;
-    /* The clean path: a byte inside a candidate whose size is known (complete_at is 0 unless it
-     * is, nothing waits and it fits where it lies), and the same millisecond as the byte before
-     * it, so no timeout to apply. */
-    if (end + 1u < complete_at && now_ms == d->last_byte_ms) {
-        d->buffer[end] = byte;
-        d->end = end + 1u;
-        return CTRLBUS_RX_NONE;
-    }
-    if (d->buffer == NULL) {
+    if (d == NULL || d->buffer == NULL) {
         return CTRLBUS_RX_NONE;
     }
     if (d->state & STATE_WAITING) {
         return CTRLBUS_RX_BUSY;
     }
-    /* The other common bytes, when the candidate is at the front (or nothing is buffered) and no
-     * timeout applies, each settled as the scan would settle it: a flag into the empty buffer,
-     * the rest of a header (whose last byte arms the candidate with its size, when that fits), a
-     * byte inside an armed candidate at a new millisecond, and the last byte when it completes a
-     * frame with a command. The byte goes to buffer[end] first; the general path below puts it
-     * there again. */
-    uint8_t *cand = d->buffer;
-    if (d->start == 0u && (end == 0u || now_ms == d->last_byte_ms || !timed_out(d, now_ms))) {
-        cand[end] = byte;
-        if (end == 0u) {
-            if ((byte | 0x40u) != CTRLBUS_FLAG_LONG) {
-                goto general; /* garbage */
-            }
-        } else if (complete_at == 0u) {
-            uint32_t header = header_size(cand[0]);
-            if (end + 1u == header) {
-                complete_at = header + length_field(cand, header) + 1u;
-                if (complete_at > d->max_frame) {
-                    goto general; /* oversize */
-                }
-                d->complete_at = complete_at;
-            }
-        } else if (end + 1u == complete_at) {
-            if (complete_at == header_size(cand[0]) + 1u || candidate_xor(cand, complete_at) != 0u) {
-                goto general; /* an empty frame (LEN 0), or a checksum error */
-            }
-            d->last_byte_ms = now_ms;
-            return take_frame(d, cand, complete_at, frame);
-        }
-        d->end = end + 1u;
-        d->last_byte_ms = now_ms;
-        return CTRLBUS_RX_NONE;
-    }
-general:
     if (results_first(d, now_ms)) {
         /* A timeout applied before the byte, and its results come first: the byte waits behind
          * the stale bytes (see STATE_HELD) and goes in when they are used up. */
@@ -770,6 +727,23 @@ general:
     }
     d->last_byte_ms = now_ms;
     return ctrlbus_decoder_next(d, frame);
+}
+
+ctrlbus_rx_t ctrlbus_decoder_push(ctrlbus_decoder_t *decoder, uint8_t byte, uint32_t now_ms,
+                                  ctrlbus_frame_t *frame)
+{
+    /* The clean path: a byte inside a candidate whose size is known (complete_at is 0 unless it
+     * is, nothing waits and it fits where it lies), at the same millisecond as the byte before
+     * it, so no timeout to apply. */
+    if (decoder != NULL) {
+        uint32_t end = decoder->end;
+        if (end + 1u < decoder->complete_at && now_ms == decoder->last_byte_ms) {
+            decoder->buffer[end] = byte;
+            decoder->end = end + 1u;
+            return CTRLBUS_RX_NONE;
+        }
+    }
+    return push_settle(decoder, byte, now_ms, frame);
 }
 
 /* ctrlbus_decoder_take() in general: results first, then feeds, as its contract spells out. */

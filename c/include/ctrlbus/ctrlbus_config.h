@@ -16,11 +16,9 @@
  *   - the API functions that only it needs return CTRLBUS_ERR_UNSUPPORTED, and
  *     ctrlbus_base_init() refuses (CTRLBUS_ERR_UNSUPPORTED) a config that asks for it.
  *
- * The size effects are .text bytes of the base stack on cortex-m0plus, arm-none-eabi-gcc 12 -Os,
- * linked with --gc-sections, each switch turned off alone from the default build (4,842 B). All
- * off together, with the decoder's bulk path off too (the minimal configuration), save 2,026 B
- * (2,816 B left). Measured with `make size`, which prints both configurations for every target;
- * docs/performance.md tables them.
+ * What each switch saves is measured, not stated here: `make size` prints the base stack per target
+ * in the default configuration, in the minimal one (every switch off) and with each switch off
+ * alone, and docs/performance.md tables the figures.
  */
 #ifndef CTRLBUS_CTRLBUS_CONFIG_H
 #define CTRLBUS_CTRLBUS_CONFIG_H
@@ -33,7 +31,7 @@
  * watchdog's health warning). Off: HEALTH_GET_HEALTH (mandatory) answers no errors,
  * HEALTH_GET_ERROR and HEALTH_CLR_ERROR answer 0x8002 (no such error, as with an empty registry),
  * ctrlbus_base_health_add/_clear return CTRLBUS_ERR_UNSUPPORTED, and a config with
- * health_entries is refused. Size effect: 428 B. */
+ * health_entries is refused. */
 #ifndef CTRLBUS_CONFIG_HEALTH
 #define CTRLBUS_CONFIG_HEALTH 1
 #endif
@@ -41,31 +39,29 @@
 /* External commands offered to the Core (ctrlbus_base_queue_command, POLL_BASE_CMD with a
  * pending command, the nCMD line callback). Off: POLL_BASE_CMD (mandatory) always answers
  * "nothing pending", POLL_BASE_ANS_CMD answers OK, ctrlbus_base_queue_command returns
- * CTRLBUS_ERR_UNSUPPORTED, and a config with command_queue storage is refused.
- * Size effect: 234 B. */
+ * CTRLBUS_ERR_UNSUPPORTED, and a config with command_queue storage is refused. */
 #ifndef CTRLBUS_CONFIG_COMMAND_QUEUE
 #define CTRLBUS_CONFIG_COMMAND_QUEUE 1
 #endif
 
 /* The velocity limits (ctrlbus_base_config_t.limits, docs/protocol.md §9.2), including the
  * differential-drive arithmetic they need. Off: commands reach the handlers unchanged, and a
- * config with any limit set is refused. Size effect: 352 B (ctrlbus/diffdrive.h's wheel speeds
- * 124 B and the scaling 118 B, in 32-bit arithmetic: no libgcc multiply or divide; the rest is
- * the clamping and the calls in the request handling). */
+ * config with any limit set is refused. (ctrlbus/diffdrive.h's wheel speeds and scaling are in
+ * 32-bit arithmetic: no libgcc multiply or divide.) */
 #ifndef CTRLBUS_CONFIG_LIMITS
 #define CTRLBUS_CONFIG_LIMITS 1
 #endif
 
 /* The sdk2020 profile (CTRLBUS_PROFILE_SDK2020: CONNECT with its suffix, deadreckon with the
  * timestamp, bumpers padded to 4 bytes, POLL_BASE_CMD's FF 00). Off: only the reference profile;
- * a config asking for sdk2020 is refused. Size effect: 84 B. */
+ * a config asking for sdk2020 is refused. */
 #ifndef CTRLBUS_CONFIG_PROFILE_SDK2020
 #define CTRLBUS_CONFIG_PROFILE_SDK2020 1
 #endif
 
 /* GET_BASE_CONF_ADV (0x21), streamed from ctrlbus_base_config_t.binary_config. Off: the request
  * is answered 0x8000 (the Core then asks GET_BASE_CONF), and a config with a binary_config is
- * refused. Size effect: 12 B. */
+ * refused. */
 #ifndef CTRLBUS_CONFIG_CONF_ADV
 #define CTRLBUS_CONFIG_CONF_ADV 1
 #endif
@@ -75,8 +71,7 @@
  * a Core or a test tool needs and a base never does. They live in their own file
  * (src/messages_master.c), so a base firmware linked with --gc-sections never pays for them;
  * off, they are neither compiled nor declared (using one is a compile error).
- * Size effect on the base stack: 0 B (they were never linked into it); on the whole library
- * (every object, unlinked): 1,661 B (src/messages_master.c). */
+ * A base stack never links them; the switch only shortens the library's own build. */
 #ifndef CTRLBUS_CONFIG_MASTER_CODECS
 #define CTRLBUS_CONFIG_MASTER_CODECS 1
 #endif
@@ -85,7 +80,7 @@
  * it for the whole build, e.g. -DCTRLBUS_DEFAULT_PROFILE=CTRLBUS_PROFILE_SDK2020, to build a
  * firmware for the vendor's 2020 master SDK without touching its code (c/firmware builds its
  * sdk2020 image so). Zero is CTRLBUS_PROFILE_REFERENCE, so with the sdk2020 default the reference
- * profile cannot be chosen at run time. Size effect: none. */
+ * profile cannot be chosen at run time. */
 #ifndef CTRLBUS_DEFAULT_PROFILE
 #define CTRLBUS_DEFAULT_PROFILE CTRLBUS_PROFILE_REFERENCE
 #endif
