@@ -226,6 +226,7 @@ def run(ctx: BenchContext) -> Findings:
                         if name != "main"
                     ]
                     figures["write_calls_per_answer"] = round(measured.report["writes"] / count, 2)
+                    figures["largest_write_bytes"] = measured.report["max_write"]
             base = callgrind(ctx, peer_bin, "baseline", peer_path)
             parsed = callgrind(ctx, peer_bin, "parse", peer_path)
             if parsed.report["messages"] != count:
