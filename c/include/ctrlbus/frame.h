@@ -253,7 +253,8 @@ void ctrlbus_decoder_reset(ctrlbus_decoder_t *decoder);
  * the ctrlbus_decoder_next() calls after it. Nothing depends on history beyond the buffer.
  * Cost class: O(1) per byte on a clean link (a candidate's known remainder goes in as one copy and
  * its checksum is taken once, when it is complete). For one byte at a time, use
- * ctrlbus_decoder_push() rather than a feed of 1; for a chunk, ctrlbus_decoder_take(). */
+ * ctrlbus_decoder_push() rather than a feed of 1; ctrlbus_decoder_take() takes a chunk one result
+ * per call and hands a whole frame out in place. */
 size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, size_t len,
                             uint32_t now_ms);
 
