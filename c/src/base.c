@@ -829,15 +829,12 @@ static NOINLINE void answer(ctrlbus_base_t *base, ctrlbus_rx_t rx, const ctrlbus
     }
 }
 
-/* Answers `rx` (a result push or take returned, with *frame; NONE or BUSY for none), then every
- * result the decoder has ready (into *frame). Returns how many there were. */
+/* Answers `rx` (a result next() returned, with *frame; NONE for none), then every result the
+ * decoder has ready (into *frame). Returns how many there were. */
 static inline unsigned drain(ctrlbus_base_t *base, uint32_t now_ms, ctrlbus_rx_t rx,
                       ctrlbus_frame_t *frame)
 {
     unsigned results = 0;
-    if (rx == CTRLBUS_RX_NONE || rx == CTRLBUS_RX_BUSY) {
-        rx = ctrlbus_decoder_next(&base->decoder, frame);
-    }
     for (; rx != CTRLBUS_RX_NONE; rx = ctrlbus_decoder_next(&base->decoder, frame)) {
         results++;
         answer(base, rx, frame, now_ms);
@@ -881,15 +878,14 @@ void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
             }
             /* The ring is done: the inter-byte timeout, then whatever it leaves to answer. */
             ctrlbus_decoder_tick(&base->decoder, now_ms);
-            rx = CTRLBUS_RX_BUSY; /* drain: the decoder's own results */
+            rx = ctrlbus_decoder_next(&base->decoder, &frame);
         } else {
             /* The run of bytes up to head or the ring's end. */
             used = (size_t)((head > tail ? head : config->rx_ring_size) - tail);
             rx = feed_run(base, &used, now_ms, &frame);
         }
-        /* A result is answered before its bytes' slots are released, since a frame taken in
-         * place still lies in them. */
-        unsigned results = rx == CTRLBUS_RX_NONE ? 0u : drain(base, now_ms, rx, &frame);
+        /* The results are answered before their bytes' slots are released. */
+        unsigned results = drain(base, now_ms, rx, &frame);
         if (base->flags & FLAG_REBOOTED) {
             /* A reboot handler returned: restart() dropped the ring's bytes, the answered ones
              * included, and what was received before the reset is not heard. */
