@@ -13,36 +13,68 @@
 
 /* ---- reading fields ------------------------------------------------------------------------- */
 
-/* A text field of field_size bytes into out[out_size]: the ASCII characters before the first NUL,
- * NUL-terminated. FORMAT for a byte above 0x7F before the NUL, or for text that leaves no room for
- * the terminator in out (out_size == field_size means the field itself must hold a NUL). */
-static int32_t take_text(const uint8_t **p, char *out, size_t out_size, size_t field_size)
+/* An answer's fields read through its layout (codec.h): the table the encoder walks, walked the
+ * other way. Integers are assembled from their little-endian bytes (any host, any alignment of
+ * the payload; a word the payload ends inside is zero-padded: the short bumper forms); text is
+ * copied up to its NUL and zero-filled after it, FORMAT for a byte above 0x7F before the NUL.
+ * The walk ends with the payload, or at the BYTES field (the caller points it at the rest). */
+static int32_t take_fields(ctrlbus_codec_layout_t layout, void *answer, const uint8_t *payload,
+                           size_t len)
 {
-    const uint8_t *field = *p;
-    *p += field_size;
-    size_t len = 0;
-    while (len < field_size && field[len] != 0) {
-        if (field[len] > 0x7Fu) {
-            return CTRLBUS_ERR_FORMAT;
+    for (; len > 0u; layout++) {
+        uint8_t *at = (uint8_t *)answer + CODEC_ROM_BYTE(&layout->offset);
+        uint8_t shape = CODEC_ROM_BYTE(&layout->shape);
+        size_t count = (size_t)(shape >> 2);
+        uint8_t kind = (uint8_t)(shape & 3u);
+        if (count == 0u) {
+            return CTRLBUS_OK; /* BYTES */
         }
-        len++;
+        if (kind == FIELD_TEXT) {
+            bool ended = false;
+            for (; count > 0u && len > 0u; count--, len--, payload++) {
+                if (!ended && *payload > 0x7Fu) {
+                    return CTRLBUS_ERR_FORMAT;
+                }
+                ended = ended || *payload == 0u;
+                *at++ = ended ? 0u : *payload;
+            }
+            continue;
+        }
+        size_t width = (size_t)1u << kind;
+        for (; count > 0u && len > 0u; count--, at += width) {
+            size_t piece = width < len ? width : len;
+            uint32_t value = 0;
+            for (size_t i = 0; i < piece; i++) {
+                value |= (uint32_t)payload[i] << (8u * i);
+            }
+            payload += piece;
+            len -= piece;
+            /* int32_t members alike: a signed type may be read and written as its unsigned one */
+            if (width == 4u) {
+                *(uint32_t *)(void *)at = value;
+            } else if (width == 2u) {
+                *(uint16_t *)(void *)at = (uint16_t)value;
+            } else {
+                *at = (uint8_t)value;
+            }
+        }
     }
-    if (len >= out_size) {
-        return CTRLBUS_ERR_FORMAT;
-    }
-    for (size_t i = 0; i < len; i++) {
-        out[i] = (char)field[i];
-    }
-    memset(out + len, 0, out_size - len);
     return CTRLBUS_OK;
 }
 
-static void take_position(const uint8_t **p, ctrlbus_position_t *out)
+/* The checks every answer decoder makes (pointers, then the length its layout allows:
+ * `size_ok`), then the struct cleared (fields of a shorter form read as zero) and filled. */
+static int32_t take_answer(void *out, size_t out_size, ctrlbus_codec_layout_t layout,
+                           const uint8_t *payload, size_t len, bool size_ok)
 {
-    out->x_mm_q8 = codec_take_s32(p);
-    out->y_mm_q8 = codec_take_s32(p);
-    out->z_mm_q8 = codec_take_s32(p);
-    out->angle_deg_q8 = codec_take_u32(p);
+    if (out == NULL || (payload == NULL && len > 0)) {
+        return CTRLBUS_ERR_ARGUMENT;
+    }
+    if (!size_ok) {
+        return CTRLBUS_ERR_FORMAT;
+    }
+    memset(out, 0, out_size);
+    return take_fields(layout, out, payload, len);
 }
 
 /* Common checks of every decoder: pointers, then the exact length. */
@@ -196,63 +228,36 @@ int32_t ctrlbus_request_encode(uint8_t *out, size_t out_size, const ctrlbus_requ
 
 /* ---- answers: one decoder per layout -------------------------------------------------------- */
 
-int32_t ctrlbus_connect_base_answer_decode(ctrlbus_connect_base_answer_t *out,
-                                           const uint8_t *payload, size_t len)
+/* BEGIN GENERATED decoders (make generate: from protocol/ctrlbus.json) */
+int32_t ctrlbus_connect_base_answer_decode(ctrlbus_connect_base_answer_t *out, const uint8_t *payload,
+    size_t len)
 {
-    bool with_suffix = len == CTRLBUS_CONNECT_BASE_ANSWER_SIZE_WITH_SUFFIX;
-    int32_t result = check_decode(out, payload, len,
-                                  with_suffix ? CTRLBUS_CONNECT_BASE_ANSWER_SIZE_WITH_SUFFIX
-                                              : CTRLBUS_CONNECT_BASE_ANSWER_SIZE);
+    bool with_firmware_version_suffix = len == CTRLBUS_CONNECT_BASE_ANSWER_SIZE_WITH_SUFFIX;
+    int32_t result = take_answer(out, sizeof *out, ctrlbus_codec_connect_base_layout, payload, len,
+        with_firmware_version_suffix || len == CTRLBUS_CONNECT_BASE_ANSWER_SIZE);
     if (result < 0) {
         return result;
     }
-    const uint8_t *p = payload;
-    if (take_text(&p, out->model, sizeof out->model, CTRLBUS_MODEL_LEN) < 0) {
-        return CTRLBUS_ERR_FORMAT;
-    }
-    out->firmware_version = codec_take_u16(&p);
-    out->hardware_version = codec_take_u16(&p);
-    for (size_t i = 0; i < CTRLBUS_SERIAL_WORDS; i++) {
-        out->serial[i] = codec_take_u32(&p);
-    }
-    out->has_firmware_version_suffix = with_suffix;
-    memset(out->firmware_version_suffix, 0, sizeof out->firmware_version_suffix);
-    if (with_suffix) {
-        return take_text(&p, out->firmware_version_suffix, sizeof out->firmware_version_suffix,
-                         CTRLBUS_FIRMWARE_VERSION_SUFFIX_LEN);
-    }
+    out->has_firmware_version_suffix = with_firmware_version_suffix;
     return CTRLBUS_OK;
 }
 
-int32_t ctrlbus_get_base_conf_answer_decode(ctrlbus_get_base_conf_answer_t *out,
-                                            const uint8_t *payload, size_t len)
+int32_t ctrlbus_get_base_conf_answer_decode(ctrlbus_get_base_conf_answer_t *out, const uint8_t *payload,
+    size_t len)
 {
-    int32_t result = check_decode(out, payload, len, CTRLBUS_GET_BASE_CONF_ANSWER_SIZE);
+    int32_t result = take_answer(out, sizeof *out, ctrlbus_codec_get_base_conf_layout, payload, len,
+        len == CTRLBUS_GET_BASE_CONF_ANSWER_SIZE);
     if (result < 0) {
         return result;
     }
-    const uint8_t *p = payload;
-    out->base_type = codec_take_u8(&p);
-    out->base_radius_mm_q8 = codec_take_u32(&p);
-    out->motor_type = codec_take_u8(&p);
-    out->sensor_num = codec_take_u8(&p);
-    for (size_t i = 0; i < CTRLBUS_CONF_SLOTS; i++) {
-        take_position(&p, &out->sensors[i]);
-    }
-    out->bumper_num = codec_take_u8(&p);
-    for (size_t i = 0; i < CTRLBUS_CONF_SLOTS; i++) {
-        take_position(&p, &out->bumpers[i]);
-    }
-    if (out->sensor_num > CTRLBUS_CONF_SLOTS || out->bumper_num > CTRLBUS_CONF_SLOTS) {
-        return CTRLBUS_ERR_FORMAT;
-    }
-    return CTRLBUS_OK;
+    return out->sensor_num > 8u || out->bumper_num > 8u ? CTRLBUS_ERR_FORMAT : CTRLBUS_OK;
 }
 
-int32_t ctrlbus_get_base_conf_adv_answer_decode(ctrlbus_get_base_conf_adv_answer_t *out,
-                                                const uint8_t *payload, size_t len)
+int32_t ctrlbus_get_base_conf_adv_answer_decode(ctrlbus_get_base_conf_adv_answer_t *out, const uint8_t *payload,
+    size_t len)
 {
-    int32_t result = check_decode(out, payload, len, len);
+    int32_t result = take_answer(out, sizeof *out, ctrlbus_codec_get_base_conf_adv_layout, payload, len,
+        true);
     if (result < 0) {
         return result;
     }
@@ -261,104 +266,88 @@ int32_t ctrlbus_get_base_conf_adv_answer_decode(ctrlbus_get_base_conf_adv_answer
     return CTRLBUS_OK;
 }
 
-int32_t ctrlbus_get_base_status_answer_decode(ctrlbus_get_base_status_answer_t *out,
-                                              const uint8_t *payload, size_t len)
+int32_t ctrlbus_get_base_status_answer_decode(ctrlbus_get_base_status_answer_t *out, const uint8_t *payload,
+    size_t len)
 {
-    int32_t result = check_decode(out, payload, len, CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE);
-    if (result < 0) {
-        return result;
-    }
-    const uint8_t *p = payload;
-    out->battery_percent = codec_take_u8(&p);
-    out->power_status = codec_take_u8(&p);
-    return CTRLBUS_OK;
+    int32_t result = take_answer(out, sizeof *out, ctrlbus_codec_get_base_status_layout, payload, len,
+        len == CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE);
+    return result;
 }
 
-int32_t ctrlbus_get_base_motor_data_answer_decode(ctrlbus_get_base_motor_data_answer_t *out,
-                                                  const uint8_t *payload, size_t len)
+int32_t ctrlbus_get_base_motor_data_answer_decode(ctrlbus_get_base_motor_data_answer_t *out, const uint8_t *payload,
+    size_t len)
 {
-    int32_t result = check_decode(out, payload, len, CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE);
-    if (result < 0) {
-        return result;
-    }
-    const uint8_t *p = payload;
-    out->left_distance_mm = codec_take_s32(&p);
-    out->right_distance_mm = codec_take_s32(&p);
-    out->status = codec_take_u8(&p);
-    return CTRLBUS_OK;
+    int32_t result = take_answer(out, sizeof *out, ctrlbus_codec_get_base_motor_data_layout, payload, len,
+        len == CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE);
+    return result;
 }
 
-int32_t ctrlbus_get_base_sensor_data_answer_decode(ctrlbus_get_base_sensor_data_answer_t *out,
-                                                   const uint8_t *payload, size_t len)
+int32_t ctrlbus_get_base_sensor_data_answer_decode(ctrlbus_get_base_sensor_data_answer_t *out, const uint8_t *payload,
+    size_t len)
 {
-    int32_t result = check_decode(out, payload, len, CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE);
-    if (result < 0) {
-        return result;
-    }
-    const uint8_t *p = payload;
-    for (size_t i = 0; i < CTRLBUS_SENSOR_CHANNELS; i++) {
-        out->distances_mm_q16[i] = codec_take_u32(&p);
-    }
-    return CTRLBUS_OK;
+    int32_t result = take_answer(out, sizeof *out, ctrlbus_codec_get_base_sensor_data_layout, payload, len,
+        len == CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE);
+    return result;
 }
 
-int32_t ctrlbus_get_base_bumper_data_answer_decode(ctrlbus_get_base_bumper_data_answer_t *out,
-                                                   const uint8_t *payload, size_t len)
+int32_t ctrlbus_get_base_bumper_data_answer_decode(ctrlbus_get_base_bumper_data_answer_t *out, const uint8_t *payload,
+    size_t len)
 {
-    bool size_ok = len >= 1 && len <= CTRLBUS_GET_BASE_BUMPER_DATA_ANSWER_SIZE;
-    int32_t result = check_decode(out, payload, len, size_ok ? len : 0);
-    if (result < 0 || !size_ok) {
-        return result < 0 ? result : CTRLBUS_ERR_FORMAT;
-    }
-    out->bitmap = 0;
-    for (size_t i = 0; i < len; i++) {
-        out->bitmap |= (uint32_t)payload[i] << (8u * i);
+    int32_t result = take_answer(out, sizeof *out, ctrlbus_codec_get_base_bumper_data_layout, payload, len,
+        len >= 1u && len <= CTRLBUS_GET_BASE_BUMPER_DATA_ANSWER_SIZE);
+    if (result < 0) {
+        return result;
     }
     out->payload_size = (uint8_t)len;
     return CTRLBUS_OK;
 }
 
-int32_t ctrlbus_get_charger_data_answer_decode(ctrlbus_get_charger_data_answer_t *out,
-                                               const uint8_t *payload, size_t len)
+int32_t ctrlbus_get_charger_data_answer_decode(ctrlbus_get_charger_data_answer_t *out, const uint8_t *payload,
+    size_t len)
 {
-    int32_t result = check_decode(out, payload, len, len); /* pointers only */
+    int32_t result = take_answer(out, sizeof *out, ctrlbus_codec_get_charger_data_layout, payload, len,
+        payload != NULL && len >= CTRLBUS_GET_CHARGER_DATA_ANSWER_MIN && len == CTRLBUS_GET_CHARGER_DATA_ANSWER_MIN + payload[1]);
     if (result < 0) {
         return result;
     }
-    size_t expected = len >= CTRLBUS_GET_CHARGER_DATA_ANSWER_MIN
-                          ? CTRLBUS_GET_CHARGER_DATA_ANSWER_MIN + payload[1]
-                          : CTRLBUS_GET_CHARGER_DATA_ANSWER_MIN;
-    result = check_decode(out, payload, len, expected);
-    if (result < 0) {
-        return result;
-    }
-    out->beacon_count = payload[0];
-    out->probe_count = payload[1];
     out->probes = payload + CTRLBUS_GET_CHARGER_DATA_ANSWER_MIN;
     return CTRLBUS_OK;
 }
 
-int32_t ctrlbus_set_v_and_get_deadreckon_answer_decode(
-    ctrlbus_set_v_and_get_deadreckon_answer_t *out, const uint8_t *payload, size_t len)
+int32_t ctrlbus_set_v_and_get_deadreckon_answer_decode(ctrlbus_set_v_and_get_deadreckon_answer_t *out, const uint8_t *payload,
+    size_t len)
 {
-    bool with_timestamp = len == CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_WITH_TIMESTAMP;
-    int32_t result =
-        check_decode(out, payload, len,
-                     with_timestamp ? CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_WITH_TIMESTAMP
-                                    : CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE);
+    bool with_timestamp_ms = len == CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_WITH_TIMESTAMP;
+    int32_t result = take_answer(out, sizeof *out, ctrlbus_codec_set_v_and_get_deadreckon_layout, payload, len,
+        with_timestamp_ms || len == CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE);
     if (result < 0) {
         return result;
     }
-    const uint8_t *p = payload;
-    out->dx_mm_q16 = codec_take_s32(&p);
-    out->dy_mm_q16 = codec_take_s32(&p);
-    out->dtheta_deg_q16 = codec_take_s32(&p);
-    out->status = codec_take_u8(&p);
-    out->has_timestamp_ms = with_timestamp;
-    out->timestamp_ms = with_timestamp ? codec_take_u32(&p) : 0;
+    out->has_timestamp_ms = with_timestamp_ms;
     return CTRLBUS_OK;
 }
 
+int32_t ctrlbus_health_get_health_answer_decode(ctrlbus_health_get_health_answer_t *out, const uint8_t *payload,
+    size_t len)
+{
+    int32_t result = take_answer(out, sizeof *out, ctrlbus_codec_health_get_health_layout, payload, len,
+        len == CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE);
+    return result;
+}
+
+int32_t ctrlbus_health_get_error_answer_decode(ctrlbus_health_get_error_answer_t *out, const uint8_t *payload,
+    size_t len)
+{
+    int32_t result = take_answer(out, sizeof *out, ctrlbus_codec_health_get_error_layout, payload, len,
+        len == CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE);
+    if (result < 0) {
+        return result;
+    }
+    return out->message[CTRLBUS_HEALTH_MESSAGE_LEN - 1u] != '\0' ? CTRLBUS_ERR_FORMAT : CTRLBUS_OK;
+}
+/* END GENERATED decoders */
+
+/* POLL_BASE_CMD: three forms (messages.h), no layout. */
 int32_t ctrlbus_poll_base_cmd_answer_decode(ctrlbus_poll_base_cmd_answer_t *out,
                                             const uint8_t *payload, size_t len)
 {
@@ -371,30 +360,6 @@ int32_t ctrlbus_poll_base_cmd_answer_decode(ctrlbus_poll_base_cmd_answer_t *out,
     out->command = out->has_command ? payload[0] : 0;
     out->pad = len > 0 ? payload[1] : 0;
     return CTRLBUS_OK;
-}
-
-int32_t ctrlbus_health_get_health_answer_decode(ctrlbus_health_get_health_answer_t *out,
-                                                const uint8_t *payload, size_t len)
-{
-    int32_t result = check_decode(out, payload, len, CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE);
-    if (result < 0) {
-        return result;
-    }
-    out->flags = payload[0];
-    out->error_count = payload[1];
-    return CTRLBUS_OK;
-}
-
-int32_t ctrlbus_health_get_error_answer_decode(ctrlbus_health_get_error_answer_t *out,
-                                               const uint8_t *payload, size_t len)
-{
-    int32_t result = check_decode(out, payload, len, CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE);
-    if (result < 0) {
-        return result;
-    }
-    const uint8_t *p = payload;
-    out->error_code = codec_take_u32(&p);
-    return take_text(&p, out->message, sizeof out->message, CTRLBUS_HEALTH_MESSAGE_LEN);
 }
 
 /* ---- answers: the tagged union -------------------------------------------------------------- */

@@ -1,0 +1,526 @@
+#!/usr/bin/env python3
+# SPDX-License-Identifier: MIT
+"""Write every table that comes from the protocol description (protocol/ctrlbus.json).
+
+`make generate` runs this with no arguments: it rewrites the generated files and the blocks
+between `BEGIN GENERATED <name>` / `END GENERATED <name>` markers in hand-written ones (C layout
+tables, answer structs and decoders; Python tables; Wireshark and sigrok tables; protocol.md
+tables). Standard library only, so that nothing but Python 3.10 is needed.
+
+    python3 scripts/generate_protocol.py             # rewrite in place
+    python3 scripts/generate_protocol.py --out DIR   # write the would-be files under DIR instead
+    python3 scripts/generate_protocol.py --check     # exit 1 naming each file that is out of date
+
+The description is reviewed by hand; this script never reads an implementation.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+REPO = Path(__file__).resolve().parent.parent
+DESCRIPTION = Path("protocol/ctrlbus.json")
+COMMAND = "make generate"
+WIDTHS = {"u8": 1, "u16": 2, "u32": 4, "s32": 4}
+C_TYPES = {"u8": "uint8_t", "u16": "uint16_t", "u32": "uint32_t", "s32": "int32_t"}
+C_KINDS = {1: "FIELD_U8", 2: "FIELD_U16", 4: "FIELD_U32"}
+
+
+class DescriptionError(Exception):
+    """The description breaks a rule of its own format."""
+
+
+def number(value: int | str) -> int:
+    """A number of the description: an int, or hexadecimal text like "0x10"."""
+    return value if isinstance(value, int) else int(value, 0)
+
+
+# --- the description, read once --------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Field:
+    """One field of a request or answer as the description gives it."""
+
+    name: str
+    type: str  # u8 u16 u32 s32 text bytes, or a struct name
+    count: int  # array items (1: a scalar), text bytes, or 0 for bytes
+    raw: dict[str, Any]
+    struct_words: int = 0  # 32-bit words of one item of a struct type
+
+    @property
+    def optional(self) -> bool:
+        return bool(self.raw.get("optional"))
+
+    @property
+    def is_array(self) -> bool:
+        return "count" in self.raw and self.type != "text"
+
+    @property
+    def doc(self) -> str:
+        return str(self.raw.get("doc", ""))
+
+    @property
+    def width(self) -> int:
+        """Bytes of one wire item; 4 for a struct item's words; 0 for text and bytes."""
+        return 4 if self.struct_words else WIDTHS.get(self.type, 0)
+
+    @property
+    def wire_size(self) -> int:
+        if self.type == "bytes":
+            return 0
+        if self.type == "text":
+            return self.count
+        return self.count * (self.struct_words * 4 if self.struct_words else self.width)
+
+
+@dataclass(frozen=True)
+class Answer:
+    message: str
+    fields: tuple[Field, ...]
+    raw: dict[str, Any]
+
+    @property
+    def custom(self) -> bool:
+        return bool(self.raw.get("custom"))
+
+    @property
+    def base_size(self) -> int:
+        """Wire bytes without the optional tail and the bytes field."""
+        return sum(f.wire_size for f in self.fields if not f.optional)
+
+    @property
+    def full_size(self) -> int:
+        return sum(f.wire_size for f in self.fields)
+
+    @property
+    def optional_field(self) -> Field | None:
+        return next((f for f in self.fields if f.optional), None)
+
+    @property
+    def bytes_field(self) -> Field | None:
+        return next((f for f in self.fields if f.type == "bytes"), None)
+
+
+@dataclass(frozen=True)
+class Message:
+    name: str
+    raw: dict[str, Any]
+    request: tuple[Field, ...]
+    answer: Answer | None  # None: empty OK, no layout, or none defined
+
+    @property
+    def lower(self) -> str:
+        return self.name.lower()
+
+    @property
+    def anchor(self) -> str:
+        return str(self.raw["anchor"])
+
+    @property
+    def code(self) -> int | None:
+        return number(self.raw["code"]) if "code" in self.raw else None
+
+    @property
+    def subcommand(self) -> int | None:
+        return number(self.raw["subcommand"]) if "subcommand" in self.raw else None
+
+    @property
+    def answer_kind(self) -> str:
+        answer = self.raw["answer"]
+        return "empty" if answer.get("empty") else "none" if answer.get("none") else "fields"
+
+    @property
+    def request_size(self) -> int:
+        """The CTRL_BUS payload: code, sub-command, arguments (BASE_CMD: its one byte)."""
+        head = 0 if self.code is None else 1 + (self.subcommand is not None)
+        return head + sum(f.wire_size for f in self.request)
+
+
+@dataclass
+class Description:
+    raw: dict[str, Any]
+    messages: list[Message] = field(default_factory=list)
+
+    def struct_fields(self, name: str) -> list[dict[str, Any]]:
+        return list(self.raw["structs"][name]["fields"])
+
+
+def _field(desc: dict[str, Any], raw: dict[str, Any], owner: str) -> Field:
+    kind = str(raw["type"])
+    count = int(raw.get("count", 0 if kind == "bytes" else 1))
+    words = 0
+    if kind in desc["structs"]:
+        members = desc["structs"][kind]["fields"]
+        if any(member["type"] not in ("u32", "s32") for member in members):
+            raise DescriptionError(f"{owner}.{raw['name']}: struct {kind} must be 32-bit words")
+        words = len(members)
+    elif kind not in WIDTHS and kind not in ("text", "bytes"):
+        raise DescriptionError(f"{owner}.{raw['name']}: unknown type {kind!r}")
+    if "anchor" not in raw and owner == "":
+        raise DescriptionError(f"{raw['name']}: no anchor")
+    return Field(str(raw["name"]), kind, count, raw, words)
+
+
+def load(repo: Path) -> Description:
+    raw = json.loads((repo / DESCRIPTION).read_text(encoding="utf-8"))
+    description = Description(raw)
+    for item in raw["messages"]:
+        name = str(item["name"])
+        if "anchor" not in item:
+            raise DescriptionError(f"{name}: every message cites its protocol.md anchor")
+        request = tuple(_field(raw, f, name) for f in item["request"]["fields"])
+        answer = None
+        if "fields" in item["answer"]:
+            fields = tuple(_field(raw, f, name) for f in item["answer"]["fields"])
+            answer = Answer(name, fields, item["answer"])
+            _check_answer(answer)
+        description.messages.append(Message(name, item, request, answer))
+    return description
+
+
+def _check_answer(answer: Answer) -> None:
+    optional = [f for f in answer.fields if f.optional]
+    if len(optional) > 1 or (optional and answer.fields[-1] is not optional[0]):
+        raise DescriptionError(f"{answer.message}: only the last field may be optional")
+    bytes_fields = [f for f in answer.fields if f.type == "bytes"]
+    if bytes_fields and answer.fields[-1] is not bytes_fields[0]:
+        raise DescriptionError(f"{answer.message}: a bytes field must be the last one")
+
+
+# --- marker blocks ---------------------------------------------------------------------------
+
+
+def replace_block(text: str, name: str, body: str, path: str) -> str:
+    """`text` with the lines between the BEGIN/END GENERATED `name` markers replaced by `body`."""
+    pattern = re.compile(
+        rf"(^[^\n]*BEGIN GENERATED {re.escape(name)}\b[^\n]*\n)(.*?)(^[^\n]*END GENERATED {re.escape(name)}\b)",
+        re.S | re.M,
+    )
+    found = pattern.search(text)
+    if found is None:
+        raise DescriptionError(f"{path}: no BEGIN/END GENERATED {name} markers")
+    return text[: found.start(2)] + body + text[found.end(2) :]
+
+
+# --- C -------------------------------------------------------------------------------------------
+
+
+def c_struct(message: Message) -> str:
+    return f"ctrlbus_{message.lower}_answer_t"
+
+
+def c_count(f: Field) -> str:
+    return f"CTRLBUS_{f.raw['count_name']}" if "count_name" in f.raw else f"{f.count}u"
+
+
+def c_members(answer: Answer, desc: Description) -> Iterator[str]:
+    for f in answer.fields:
+        doc = c_comment(f, desc)
+        if f.optional:
+            yield f"    bool has_{f.name}; /* false: the shorter form (the contract's null) */"
+        if f.type == "text":
+            extra = "" if f.raw.get("nul_in_field") else " + 1"
+            yield f"    char {f.name}[{c_count(f)}{extra}];{doc}"
+        elif f.type == "bytes":
+            yield f"    const uint8_t *{f.name};{doc}"
+            if "count_field" not in f.raw:
+                yield f"    size_t {f.name}_len;"
+        else:
+            ctype = f"ctrlbus_{f.type}_t" if f.struct_words else C_TYPES[f.type]
+            array = f"[{c_count(f)}]" if f.is_array else ""
+            yield f"    {ctype} {f.name}{array};{doc}"
+    if "size_field" in answer.raw:
+        yield f"    uint8_t {answer.raw['size_field']}; /* bytes on the wire */"
+
+
+def c_bits(desc: Description) -> str:
+    lines: list[str] = []
+    for name, group in desc.raw["bits"].items():
+        if "c_prefix" not in group:
+            continue
+        lines.append(f"/* {group['of']} ([{group['anchor']}]). */")
+        for bit in group["bits"]:
+            lines.append(f"#define CTRLBUS_{group['c_prefix']}_{bit['name']} 0x{1 << bit['bit']:02X}u /* {bit['meaning']} */")
+    return "\n".join(lines) + "\n"
+
+
+def c_comment(f: Field, desc: Description | None = None) -> str:
+    """A member's comment: unit and scale, bit names, the description's note."""
+    parts = []
+    if "unit" in f.raw:
+        parts.append(f.raw["unit"] + (f", {f.raw['scale']}" if "scale" in f.raw else ""))
+    bits = f.raw.get("bits")
+    if desc is not None and bits and "c_prefix" in desc.raw["bits"][bits]:
+        parts.append(f"CTRLBUS_{desc.raw['bits'][bits]['c_prefix']}_* bits")
+    if f.doc:
+        parts.append(f.doc)
+    return f" /* {'; '.join(parts)} */" if parts else ""
+
+
+def c_position_struct(desc: Description, name: str) -> str:
+    struct = desc.raw["structs"][name]
+    lines = [f"/* {struct['doc'][0].upper()}{struct['doc'][1:]}. */", "typedef struct {"]
+    for member in struct["fields"]:
+        lines.append(f"    {C_TYPES[member['type']]} {member['name']};")
+    lines.append(f"}} ctrlbus_{name}_t;")
+    return "\n".join(lines)
+
+
+def c_answer_structs(desc: Description) -> str:
+    blocks: list[str] = []
+    emitted: set[str] = set()
+    for message in desc.messages:
+        answer = message.answer
+        if answer is None or answer.custom:
+            continue
+        for f in answer.fields:
+            if f.struct_words and f.type not in emitted:
+                emitted.add(f.type)
+                blocks.append(c_position_struct(desc, f.type))
+        members = "\n".join(c_members(answer, desc))
+        blocks.append(f"/* {message.name} (docs/protocol.md [{message.anchor}]) */\ntypedef struct {{\n{members}\n}} {c_struct(message)};")
+    return "\n\n".join(blocks) + "\n"
+
+
+def c_size_macros(desc: Description) -> str:
+    lines = ["/* Field counts. */"]
+    counts: dict[str, tuple[int, str]] = {}
+    for message in desc.messages:
+        fields = list(message.request) + list(message.answer.fields if message.answer else ())
+        for f in fields:
+            if "count_name" in f.raw:
+                counts.setdefault(f.raw["count_name"], (f.count, f"{message.name} {f.name}"))
+    for name, (count, where) in counts.items():
+        lines.append(f"#define CTRLBUS_{name} {count}u /* {where} */")
+    lines.append("/* Request payloads (CMD 0xF8: request code and sub-command included). */")
+    lines.append("#define CTRLBUS_PLAIN_REQUEST_SIZE 1u /* requests without argument: just the code */")
+    for message in desc.messages:
+        if message.request or message.subcommand is not None:
+            lines.append(f"#define CTRLBUS_{message.name}_REQUEST_SIZE {message.request_size}u")
+    lines.append("/* OK answer payloads. Where the sources know two forms, both are accepted when decoding. */")
+    for message in desc.messages:
+        answer = message.answer
+        if answer is None:
+            continue
+        prefix = f"CTRLBUS_{message.name}_ANSWER"
+        if answer.custom:
+            lines.append(f"#define {prefix}_SIZE {max(answer.raw['sizes'])}u /* or {min(answer.raw['sizes'])} */")
+        elif answer.bytes_field is not None:
+            if "count_field" in answer.bytes_field.raw:
+                lines.append(f"#define {prefix}_MIN {answer.base_size}u /* + {answer.bytes_field.raw['count_field']} */")
+        elif answer.optional_field is not None:
+            tail = answer.optional_field
+            lines.append(f"#define {prefix}_SIZE {answer.base_size}u /* without {tail.name} */")
+            lines.append(f"#define {prefix}_SIZE_{tail.raw['form_name']} {answer.full_size}u")
+        elif "min_size" in answer.raw:
+            lines.append(f"#define {prefix}_SIZE {answer.full_size}u /* {answer.raw['min_size']}..{answer.full_size} accepted */")
+        else:
+            lines.append(f"#define {prefix}_SIZE {answer.full_size}u")
+    return "\n".join(lines) + "\n"
+
+
+@dataclass
+class LayoutEntry:
+    first: Field
+    kind: str
+    count: str
+    members: list[Field]
+
+
+def layout_entries(answer: Answer) -> list[LayoutEntry]:
+    """The layout table's rows: runs of integer fields of one width merged, as the struct keeps
+    same-type neighbours contiguous (generated checks below prove it)."""
+    entries: list[LayoutEntry] = []
+    for f in answer.fields:
+        if f.type == "text":
+            entries.append(LayoutEntry(f, "FIELD_TEXT", c_count(f), [f]))
+        elif f.type == "bytes":
+            entries.append(LayoutEntry(f, "", "", [f]))
+        elif f.struct_words:
+            entries.append(LayoutEntry(f, "FIELD_U32", f"{c_count(f)} * {f.struct_words}u", [f]))
+        else:
+            last = entries[-1] if entries else None
+            kind = C_KINDS[f.width]
+            if (
+                last is not None
+                and last.kind == kind
+                and not f.optional
+                and not f.is_array
+                and not last.first.struct_words
+                and not any(m.is_array for m in last.members)
+            ):
+                last.members.append(f)
+                last.count = f"{len(last.members)}"
+            else:
+                entries.append(LayoutEntry(f, kind, c_count(f) if f.is_array else "1", [f]))
+    return entries
+
+
+def c_layouts(desc: Description) -> str:
+    blocks: list[str] = []
+    checks: list[str] = []
+    for message in desc.messages:
+        answer = message.answer
+        if answer is None or answer.custom:
+            continue
+        struct = c_struct(message)
+        rows = []
+        for entry in layout_entries(answer):
+            if entry.kind == "":
+                rows.append(f"    CODEC_FIELD_BYTES({struct}, {entry.first.name}),")
+                continue
+            names = " + ".join(m.name for m in entry.members[1:])
+            note = f" /* + {names} */" if names else ""
+            rows.append(f"    CODEC_FIELD({struct}, {entry.first.name}, {entry.kind}, {entry.count}),{note}")
+            for before, after in zip(entry.members, entry.members[1:]):
+                checks.append(f"FOLLOWS({struct}, {before.name}, {after.name}, {entry.first.width}u)")
+            checks.append(f"offsetof({struct}, {entry.members[-1].name}) < 256u")
+        table = "\n".join(rows)
+        blocks.append(
+            f"/* {message.name} (docs/protocol.md [{message.anchor}]) */\n"
+            f"const ctrlbus_codec_field_t ctrlbus_codec_{message.lower}_layout[] CODEC_ROM = {{\n{table}\n}};"
+        )
+    joined = " &&\n             ".join(checks)
+    check = f"typedef char ctrlbus_codec_layouts_fit_their_structs\n    [{joined}\n         ? 1\n         : -1];"
+    return check + "\n\n" + "\n\n".join(blocks) + "\n"
+
+
+def c_layout_declarations(desc: Description) -> str:
+    return "".join(
+        f"extern const ctrlbus_codec_field_t ctrlbus_codec_{m.lower}_layout[] CODEC_ROM;\n"
+        for m in desc.messages
+        if m.answer is not None and not m.answer.custom
+    )
+
+
+def c_decoder(message: Message) -> str:
+    answer = message.answer
+    assert answer is not None
+    prefix = f"CTRLBUS_{message.name}_ANSWER"
+    tail = answer.optional_field
+    blob = answer.bytes_field
+    before: list[str] = []
+    after: list[str] = []
+    if tail is not None:
+        form = f"{prefix}_SIZE_{tail.raw['form_name']}"
+        before.append(f"bool with_{tail.name} = len == {form};")
+        size_ok = f"with_{tail.name} || len == {prefix}_SIZE"
+        after.append(f"out->has_{tail.name} = with_{tail.name};")
+    elif blob is not None and "count_field" in blob.raw:
+        counter = next(i for i, f in enumerate(answer.fields) if f.name == blob.raw["count_field"])
+        size_ok = f"payload != NULL && len >= {prefix}_MIN && len == {prefix}_MIN + payload[{counter}]"
+    elif blob is not None:
+        size_ok = "true"
+    elif "min_size" in answer.raw:
+        size_ok = f"len >= {answer.raw['min_size']}u && len <= {prefix}_SIZE"
+    else:
+        size_ok = f"len == {prefix}_SIZE"
+    if blob is not None:
+        start = f" + {prefix}_MIN" if answer.base_size else ""
+        after.append(f"out->{blob.name} = payload{start};")
+        if "count_field" not in blob.raw:
+            after.append(f"out->{blob.name}_len = len;")
+    if "size_field" in answer.raw:
+        after.append(f"out->{answer.raw['size_field']} = (uint8_t)len;")
+    limits = [f"out->{f.name} > {f.raw['max']}u" for f in answer.fields if f.raw.get("max_is_format_error")]
+    limits += [
+        f"out->{f.name}[{c_count(f)} - 1u] != '\\0'" for f in answer.fields if f.raw.get("nul_in_field")
+    ]
+    lines = [
+        f"int32_t ctrlbus_{message.lower}_answer_decode({c_struct(message)} *out, const uint8_t *payload,",
+        "    size_t len)",
+        "{",
+    ]
+    lines += [f"    {line}" for line in before]
+    lines.append(
+        f"    int32_t result = take_answer(out, sizeof *out, ctrlbus_codec_{message.lower}_layout, payload, len,\n"
+        f"        {size_ok});"
+    )
+    if after or limits:
+        lines.append("    if (result < 0) {\n        return result;\n    }")
+        lines += [f"    {line}" for line in after]
+        if limits:
+            lines.append(f"    return {' || '.join(limits)} ? CTRLBUS_ERR_FORMAT : CTRLBUS_OK;")
+        else:
+            lines.append("    return CTRLBUS_OK;")
+    else:
+        lines.append("    return result;")
+    lines.append("}")
+    return "\n".join(lines)
+
+
+def c_decoders(desc: Description) -> str:
+    return "\n\n".join(
+        c_decoder(m) for m in desc.messages if m.answer is not None and not m.answer.custom
+    ) + "\n"
+
+
+# --- the generated outputs -----------------------------------------------------------------
+
+
+Block = tuple[str, Callable[[Description], str]]
+BLOCKS: dict[str, list[Block]] = {
+    "c/include/ctrlbus/messages.h": [("bits", c_bits), ("sizes", c_size_macros), ("answer structs", c_answer_structs)],
+    "c/src/codec.h": [("layout declarations", c_layout_declarations)],
+    "c/src/messages.c": [("layouts", c_layouts)],
+    "c/src/messages_master.c": [("decoders", c_decoders)],
+}
+WHOLE_FILES: dict[str, Callable[[Description], str]] = {}
+
+
+def render(repo: Path) -> dict[str, str]:
+    """Every generated file's would-be text, by its path in the repository."""
+    desc = load(repo)
+    out: dict[str, str] = {}
+    for path, blocks in BLOCKS.items():
+        text = (repo / path).read_text(encoding="utf-8")
+        for name, make in blocks:
+            text = replace_block(text, name, make(desc), path)
+        out[path] = text
+    for path, make in WHOLE_FILES.items():
+        out[path] = make(desc)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--out", type=Path, help="write under this folder instead of the repository")
+    parser.add_argument("--check", action="store_true", help="only say which files are out of date")
+    parser.add_argument("--repo", type=Path, default=REPO, help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    try:
+        files = render(args.repo)
+    except (DescriptionError, KeyError, ValueError, OSError) as exc:
+        print(f"generate_protocol: {exc}", file=sys.stderr)
+        return 2
+    if args.check:
+        stale = [p for p, text in files.items() if _read(args.repo / p) != text]
+        for path in stale:
+            print(f"generate_protocol: {path} is out of date: run `{COMMAND}`", file=sys.stderr)
+        return 1 if stale else 0
+    target = args.out or args.repo
+    for path, text in files.items():
+        destination = target / path
+        destination.parent.mkdir(parents=True, exist_ok=True)
+        if _read(destination) != text:
+            destination.write_text(text, encoding="utf-8")
+    return 0
+
+
+def _read(path: Path) -> str | None:
+    try:
+        return path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        return None
+
+
+if __name__ == "__main__":
+    sys.exit(main())
