@@ -37,8 +37,23 @@ from dataclasses import dataclass
 from dataclasses import fields as dataclass_fields
 from typing import TYPE_CHECKING, Any, ClassVar
 
+from ctrlbus import protocol_tables
 from ctrlbus.errors import MessageFormatError, UnsupportedMessageError, UnsupportedSubcommandError
 from ctrlbus.frame import encode as encode_frame
+from ctrlbus.protocol_tables import (
+    ConnectBaseAnswerFields,
+    GetBaseBumperDataAnswerFields,
+    GetBaseConfAdvAnswerFields,
+    GetBaseConfAnswerFields,
+    GetBaseMotorDataAnswerFields,
+    GetBaseSensorDataAnswerFields,
+    GetBaseStatusAnswerFields,
+    GetChargerDataAnswerFields,
+    HealthGetErrorAnswerFields,
+    HealthGetHealthAnswerFields,
+    PositionFields,
+    SetVAndGetDeadreckonAnswerFields,
+)
 
 if TYPE_CHECKING:
     from typing_extensions import Self  # typing.Self from Python 3.11; annotations only
@@ -716,20 +731,9 @@ class EmptyAnswer(OkAnswer):
 
 
 @dataclass(frozen=True)
-class ConnectBaseAnswer(OkAnswer):
+class ConnectBaseAnswer(ConnectBaseAnswerFields, OkAnswer):
     """Base identity. `firmware_version_suffix` is None in the 28-byte (reference) form and text in
     the 39-byte form the vendor's 2020 SDK expects."""
-
-    _REFERENCE_FORM: ClassVar[struct.Struct] = struct.Struct("<12sHH3I")  # 28 bytes
-    _SDK_FORM: ClassVar[struct.Struct] = struct.Struct("<12sHH3I11s")  # 39 bytes
-    _RANGES: ClassVar[Mapping[str, tuple[int, int]]] = {"firmware_version": U16, "hardware_version": U16}
-    _ARRAYS: ClassVar[Mapping[str, tuple[tuple[int, int], int]]] = {"serial": (U32, 3)}
-
-    model: str
-    firmware_version: int
-    hardware_version: int
-    serial: tuple[int, int, int]
-    firmware_version_suffix: str | None = None
 
     def _check(self) -> None:
         _check_text("ConnectBaseAnswer", "model", self.model, 12)
@@ -765,14 +769,9 @@ class ConnectBaseAnswer(OkAnswer):
 
 
 @dataclass(frozen=True)
-class Position:
+class Position(PositionFields):
     """Where a sensor or bumper sits: mm Q8 from the robot centre (x forward, y left, z up),
     angle in degrees Q8, anticlockwise, 0..360."""
-
-    x_mm_q8: int = 0
-    y_mm_q8: int = 0
-    z_mm_q8: int = 0
-    angle_deg_q8: int = 0
 
     def __post_init__(self) -> None:
         for name in ("x_mm_q8", "y_mm_q8", "z_mm_q8"):
@@ -801,30 +800,19 @@ class Position:
 
 
 _POSITION = struct.Struct("<iiiI")
-_CONF_SLOTS = 8  # sensor and bumper positions in GET_BASE_CONF
+_CONF_SLOTS = protocol_tables.CONF_SLOTS  # sensor and bumper positions in GET_BASE_CONF
 
 
 @dataclass(frozen=True)
-class GetBaseConfAnswer(OkAnswer):
+class GetBaseConfAnswer(GetBaseConfAnswerFields, OkAnswer):
     """Base configuration (264 bytes). Fewer than 8 positions may be given: the unused slots are
     filled with zero positions, as on the wire."""
 
     _HEAD: ClassVar[struct.Struct] = struct.Struct("<BIBB")
-    _SIZE: ClassVar[int] = 1 + 4 + 1 + 1 + _CONF_SLOTS * _POSITION.size + 1 + _CONF_SLOTS * _POSITION.size
-    _RANGES: ClassVar[Mapping[str, tuple[int, int]]] = {
-        "base_type": U8,
-        "base_radius_mm_q8": U32,
-        "motor_type": U8,
-        "sensor_num": (0, _CONF_SLOTS),
-        "bumper_num": (0, _CONF_SLOTS),
-    }
+    _SIZE: ClassVar[int] = GetBaseConfAnswerFields._WIRE.size
 
-    base_type: int
-    base_radius_mm_q8: int
-    motor_type: int
-    sensor_num: int
+    # the positions as this module's Position (their place in the field order stays)
     sensors: tuple[Position, ...]
-    bumper_num: int
     bumpers: tuple[Position, ...]
 
     def _check(self) -> None:
@@ -895,12 +883,8 @@ def _unpack_positions(data: bytes, at: int) -> tuple[Position, ...]:
 
 
 @dataclass(frozen=True)
-class GetBaseConfAdvAnswer(OkAnswer):
+class GetBaseConfAdvAnswer(GetBaseConfAdvAnswerFields, OkAnswer):
     """The binary configuration, carried as opaque bytes here (its tree codec lives elsewhere)."""
-
-    _BYTES: ClassVar[tuple[str, ...]] = ("blob",)
-
-    blob: bytes
 
     def _pack(self) -> bytes:
         return self.blob
@@ -911,46 +895,22 @@ class GetBaseConfAdvAnswer(OkAnswer):
 
 
 @dataclass(frozen=True)
-class GetBaseStatusAnswer(OkAnswer):
-    """`power_status` bits: 0 charging, 1 DC power connected, 2 on the dock. A `battery_percent`
+class GetBaseStatusAnswer(GetBaseStatusAnswerFields, OkAnswer):
+    """`power_status` bits: POWER_STATUS_BITS (ctrlbus.protocol_tables). A `battery_percent`
     above 100 is kept as sent (docs/protocol.md [status]: the conformance checker flags it)."""
 
-    _LAYOUT: ClassVar[struct.Struct | None] = struct.Struct("<BB")
-    _RANGES: ClassVar[Mapping[str, tuple[int, int]]] = {"battery_percent": U8, "power_status": U8}
 
-    battery_percent: int
-    power_status: int
+@dataclass(frozen=True)
+class GetBaseMotorDataAnswer(GetBaseMotorDataAnswerFields, OkAnswer):
+    """Accumulated wheel travel; `status` bits: MOTOR_STATUS_BITS (ctrlbus.protocol_tables)."""
+
+
+SENSOR_CHANNELS = protocol_tables.SENSOR_CHANNELS
 
 
 @dataclass(frozen=True)
-class GetBaseMotorDataAnswer(OkAnswer):
-    """Accumulated wheel travel; `status` bits: 1 wheel stall, 2 traction lost."""
-
-    _LAYOUT: ClassVar[struct.Struct | None] = struct.Struct("<iiB")
-    _RANGES: ClassVar[Mapping[str, tuple[int, int]]] = {
-        "left_distance_mm": S32,
-        "right_distance_mm": S32,
-        "status": U8,
-    }
-
-    left_distance_mm: int
-    right_distance_mm: int
-    status: int
-
-
-SENSOR_CHANNELS = 16
-
-
-@dataclass(frozen=True)
-class GetBaseSensorDataAnswer(OkAnswer):
+class GetBaseSensorDataAnswer(GetBaseSensorDataAnswerFields, OkAnswer):
     """Distance per sensor in mm Q16 (16 channels, index = position in the configuration)."""
-
-    _LAYOUT: ClassVar[struct.Struct | None] = struct.Struct(f"<{SENSOR_CHANNELS}I")
-    _ARRAYS: ClassVar[Mapping[str, tuple[tuple[int, int], int]]] = {
-        "distances_mm_q16": (U32, SENSOR_CHANNELS)
-    }
-
-    distances_mm_q16: tuple[int, ...]
 
     @classmethod
     def from_si(cls, distances_mm: Sequence[float]) -> Self:
@@ -966,14 +926,9 @@ class GetBaseSensorDataAnswer(OkAnswer):
 
 
 @dataclass(frozen=True)
-class GetBaseBumperDataAnswer(OkAnswer):
+class GetBaseBumperDataAnswer(GetBaseBumperDataAnswerFields, OkAnswer):
     """Bumper and cliff bitmap, ACTIVE LOW (0 = triggered). `payload_size` is how many bytes were
     sent (4 now, 1 in the 2018 firmware); a short answer is zero-padded to 32 bits."""
-
-    _RANGES: ClassVar[Mapping[str, tuple[int, int]]] = {"bitmap": U32, "payload_size": (1, 4)}
-
-    bitmap: int
-    payload_size: int = 4
 
     def _check(self) -> None:
         if self.bitmap >> (8 * self.payload_size):
@@ -991,15 +946,9 @@ class GetBaseBumperDataAnswer(OkAnswer):
 
 
 @dataclass(frozen=True)
-class GetChargerDataAnswer(OkAnswer):
+class GetChargerDataAnswer(GetChargerDataAnswerFields, OkAnswer):
     """Dock beacon data: one byte per probe (left, main, right), each a bitmap of the beacons it
-    sees (bit0 left, bit1 main, bit2 right)."""
-
-    _RANGES: ClassVar[Mapping[str, tuple[int, int]]] = {"beacon_count": U8, "probe_count": U8}
-
-    beacon_count: int
-    probe_count: int
-    probes: tuple[int, ...]
+    sees (CHARGER_PROBE_BITS of ctrlbus.protocol_tables)."""
 
     def _check(self) -> None:
         probes = self.probes
@@ -1028,24 +977,9 @@ class GetChargerDataAnswer(OkAnswer):
 
 
 @dataclass(frozen=True)
-class SetVAndGetDeadreckonAnswer(OkAnswer):
+class SetVAndGetDeadreckonAnswer(SetVAndGetDeadreckonAnswerFields, OkAnswer):
     """Motion since the previous call, Q16: dx, dy in mm, dtheta in DEGREES (anticlockwise).
     `timestamp_ms` is None in the 13-byte (reference) form, set in the 17-byte SDK form."""
-
-    _REFERENCE_FORM: ClassVar[struct.Struct] = struct.Struct("<iiiB")  # 13 bytes
-    _SDK_FORM: ClassVar[struct.Struct] = struct.Struct("<iiiBI")  # 17 bytes
-    _RANGES: ClassVar[Mapping[str, tuple[int, int]]] = {
-        "dx_mm_q16": S32,
-        "dy_mm_q16": S32,
-        "dtheta_deg_q16": S32,
-        "status": U8,
-    }
-
-    dx_mm_q16: int
-    dy_mm_q16: int
-    dtheta_deg_q16: int
-    status: int = 0
-    timestamp_ms: int | None = None
 
     def _check(self) -> None:
         if self.timestamp_ms is not None:
@@ -1127,29 +1061,17 @@ class PollBaseCmdAnswer(OkAnswer):
 
 
 @dataclass(frozen=True)
-class HealthGetHealthAnswer(OkAnswer):
-    """`flags` bits: 0 warning, 1 error, 2 fatal."""
-
-    _LAYOUT: ClassVar[struct.Struct | None] = struct.Struct("<BB")
-    _RANGES: ClassVar[Mapping[str, tuple[int, int]]] = {"flags": U8, "error_count": U8}
-
-    flags: int
-    error_count: int
+class HealthGetHealthAnswer(HealthGetHealthAnswerFields, OkAnswer):
+    """`flags` bits: HEALTH_FLAGS_BITS (ctrlbus.protocol_tables)."""
 
 
-HEALTH_MESSAGE_SIZE = 32
+HEALTH_MESSAGE_SIZE = protocol_tables.HEALTH_MESSAGE_LEN
 
 
 @dataclass(frozen=True)
-class HealthGetErrorAnswer(OkAnswer):
+class HealthGetErrorAnswer(HealthGetErrorAnswerFields, OkAnswer):
     """One registered error: its u32 code and a text of at most 31 characters (NUL-terminated in
     32 bytes on the wire)."""
-
-    _WIRE: ClassVar[struct.Struct] = struct.Struct(f"<I{HEALTH_MESSAGE_SIZE}s")
-    _RANGES: ClassVar[Mapping[str, tuple[int, int]]] = {"error_code": U32}
-
-    error_code: int
-    message: str = ""
 
     def _check(self) -> None:
         _check_text("HealthGetErrorAnswer", "message", self.message, HEALTH_MESSAGE_SIZE - 1)
