@@ -654,6 +654,142 @@ def python_tables(desc: Description) -> str:
     return "\n".join(out) + "\n"
 
 
+# --- Wireshark (Lua) and sigrok (Python) tables --------------------------------------------------
+
+LUA_TYPES = {"u8": "uint8", "u16": "uint16", "u32": "uint32", "s32": "int32", "text": "string", "bytes": "bytes"}
+
+
+def lua_string(text: str) -> str:
+    return json.dumps(text, ensure_ascii=False)
+
+
+def lua_names(values: dict[str, str] | dict[int, str]) -> str:
+    items = ", ".join(f"[0x{number(code):02X}] = {lua_string(text)}" for code, text in values.items())
+    return f"{{ {items} }}"
+
+
+def bit_names(group: dict[str, Any]) -> dict[int, str]:
+    return {b["bit"]: b["meaning"] for b in group["bits"]}
+
+
+def contract_fields(desc: Description) -> Iterator[tuple[str, Field]]:
+    """Every field of every request and answer once (a struct's members as parent.member), in
+    the description's order: what the dissector registers."""
+    seen: set[str] = set()
+    for message in desc.messages:
+        for f in list(message.request) + list(message.answer.fields if message.answer else ()):
+            members = (
+                [(f"{f.name}.{m['name']}", Field(m["name"], m["type"], 1, m)) for m in desc.struct_fields(f.type)]
+                if f.struct_words
+                else [(f.name, f)]
+            )
+            for name, member in members:
+                if name not in seen:
+                    seen.add(name)
+                    yield name, member
+        if message.answer is not None and "size_field" in message.answer.raw:
+            name = message.answer.raw["size_field"]
+            if name not in seen:
+                seen.add(name)
+                yield name, Field(name, "u8", 1, {"name": name})
+
+
+def lua_field_spec(f: Field) -> str:
+    kind = "position" if f.struct_words else f.type
+    parts = [lua_string(f.name), lua_string(kind)]
+    if f.count != 1 or f.type == "text":
+        parts.append(str(f.count))
+    extras = []
+    if f.optional:
+        extras.append("optional = true")
+    if f.raw.get("nul_in_field"):
+        extras.append("nul_required = true")
+    if f.raw.get("truncatable"):
+        extras.append("truncatable = true")
+    if "bits" in f.raw:
+        extras.append(f"bits = {lua_string(f.raw['bits'])}")
+    if f.raw.get("layout") == "health_code":
+        extras.append("health_code = true")
+    return "{ " + ", ".join(parts + extras) + " }"
+
+
+def lua_tables(desc: Description) -> str:
+    raw = desc.raw
+    out = [
+        "-- SPDX-License-Identifier: MIT",
+        f"-- {GENERATED_NOTE}",
+        "-- The protocol description's tables for ctrlbus.lua, which loads this file from its own folder:",
+        "-- names, bit meanings, the contract's fields, request arguments and OK answer layouts.",
+        "return {",
+        f"    CMD_NAMES = {lua_names({**{c['cmd']: c['name'] for c in raw['request_cmds']}, **{c['cmd']: c['name'] for c in raw['response_cmds']}})},",
+        f"    REQUEST_NAMES = {lua_names({m.raw['code']: ('HEALTH_MGMT' if m.subcommand is not None else m.name) for m in desc.messages if m.code is not None})},",
+        f"    HEALTH_NAMES = {lua_names({m.raw['subcommand']: m.name for m in desc.messages if m.subcommand is not None})},",
+    ]
+    for name, group in raw["values"].items():
+        out.append(f"    {name.upper()} = {lua_names(group['values'])},")
+    out.append(f"    HEALTH_LEVELS = {lua_names(raw['health']['levels'])},")
+    out.append(f"    HEALTH_COMPONENTS = {lua_names(raw['health']['components'])},")
+    out.append("    BITS = {")
+    for name, group in raw["bits"].items():
+        if "bits" in group:
+            items = ", ".join(f"[{bit}] = {lua_string(text)}" for bit, text in bit_names(group).items())
+            out.append(f"        {name} = {{ {items} }},")
+    out.append("    },")
+    out.append("    -- name, ProtoField type, display (DEC_HEX for codes and bit fields), value names")
+    out.append("    FIELDS = {")
+    for name, f in contract_fields(desc):
+        ftype = LUA_TYPES.get(f.type, "bytes")
+        if f.type == "bytes" and "count_field" in f.raw:
+            ftype = "uint8"
+        hexed = bool(f.raw.get("hex")) or "bits" in f.raw or "layout" in f.raw
+        spec = [lua_string(name), lua_string(ftype)]
+        if ftype.startswith("uint"):
+            spec.append(lua_string("DEC_HEX" if hexed else "DEC"))
+            if isinstance(f.raw.get("values"), str):
+                spec.append(lua_string(f.raw["values"].upper()))
+        out.append(f"        {{ {', '.join(spec)} }},")
+    out.append("    },")
+    out.append("    -- fixed-point shift and unit of the numeric fields, by name")
+    out.append("    UNITS = {")
+    units: set[str] = set()
+    for name, f in contract_fields(desc):
+        if "unit" in f.raw and name.split(".")[-1] not in units:
+            units.add(name.split(".")[-1])
+            shift = {"Q8": 8, "Q16": 16}.get(f.raw.get("scale", ""), 0)
+            unit = {"degrees": "°"}.get(f.raw["unit"], f.raw["unit"])
+            out.append(f"        {name.split('.')[-1]} = {{ {shift}, {lua_string(unit)} }},")
+    out.append("    },")
+    out.append("    -- control-bus request arguments, after the request code (and the HEALTH sub-command)")
+    out.append("    REQUEST_ARGS = {")
+    for m in desc.messages:
+        if m.request and m.code is not None:
+            out.append(f"        {m.name} = {{ {', '.join(lua_field_spec(f) for f in m.request)} }},")
+    out.append("    },")
+    out.append("    -- OK answers: the sizes allowed and the fields in wire order")
+    out.append("    ANSWERS = {")
+    for m in desc.messages:
+        a = m.answer
+        if a is None or a.custom:
+            continue
+        size: list[str] = []
+        if a.bytes_field is not None and "count_field" in a.bytes_field.raw:
+            size.append(f"min = {a.base_size}, count_field = {lua_string(a.bytes_field.raw['count_field'])}")
+        elif a.bytes_field is not None:
+            size.append("min = 1")
+        elif "min_size" in a.raw:
+            size.append(f"min = {a.raw['min_size']}, max = {a.full_size}")
+        else:
+            sizes = sorted({a.base_size, a.full_size})
+            size.append(f"sizes = {{ {', '.join(map(str, sizes))} }}")
+        if "size_field" in a.raw:
+            size.append(f"size_field = {lua_string(a.raw['size_field'])}")
+        fields = ",\n            ".join(lua_field_spec(f) for f in a.fields)
+        out.append(f"        {m.name} = {{ {', '.join(size)}, fields = {{\n            {fields},\n        }} }},")
+    out.append("    },")
+    out.append("}")
+    return "\n".join(out) + "\n"
+
+
 # --- the generated outputs -----------------------------------------------------------------
 
 
@@ -666,6 +802,7 @@ BLOCKS: dict[str, list[Block]] = {
 }
 WHOLE_FILES: dict[str, Callable[[Description], str]] = {
     "python/src/ctrlbus/protocol_tables.py": python_tables,
+    "tools/wireshark/ctrlbus_protocol.lua": lua_tables,
 }
 
 

@@ -330,9 +330,9 @@ typedef struct {
 
 /* GET_BASE_CONF (docs/protocol.md [base-conf]) */
 typedef struct {
-    uint8_t base_type; /* 0 round, 1 square */
+    uint8_t base_type;
     uint32_t base_radius_mm_q8; /* mm, Q8 */
-    uint8_t motor_type; /* 0 two-wheel differential */
+    uint8_t motor_type;
     uint8_t sensor_num; /* distance sensors in use, 0..8 */
     ctrlbus_position_t sensors[CTRLBUS_CONF_SLOTS]; /* unused slots zero */
     uint8_t bumper_num; /* 0..8 */

@@ -64,9 +64,9 @@ BUMPER_BITMAP_ACTIVE_LOW: Final = True
 
 # [charger-data]
 CHARGER_PROBE_BITS: Final[Mapping[int, str]] = {
-    0x01: "left beacon seen",
-    0x02: "main beacon seen",
-    0x04: "right beacon seen",
+    0x01: "left beacon",
+    0x02: "main beacon",
+    0x04: "right beacon",
 }
 CHARGER_PROBE_DEFINED: Final = 0x07
 
@@ -99,6 +99,13 @@ ERROR_CODE_MEANINGS: Final[Mapping[int, str]] = {
     0x8000: "CMD, control-bus request, sub-command or argument value not supported",
     0x8001: "format error: the request's payload does not have the layout of its command",
     0x8002: "the operation failed while executing (bad index, no such error, unknown HEALTH sub-command, handler failure)",
+}
+BASE_TYPES: Final[Mapping[int, str]] = {
+    0x00: "round",
+    0x01: "square",
+}
+MOTOR_TYPES: Final[Mapping[int, str]] = {
+    0x00: "two-wheel differential",
 }
 BASE_CMD_SUBCOMMANDS: Final[Mapping[int, str]] = {
     0x01: "ENTER_DFU",
@@ -223,11 +230,9 @@ class GetBaseConfAnswerFields:
         "bumper_num": (0, 8),
     }
 
-    # 0 round, 1 square
     base_type: int
     # mm, Q8
     base_radius_mm_q8: int
-    # 0 two-wheel differential
     motor_type: int
     # distance sensors in use, 0..8
     sensor_num: int
