@@ -624,6 +624,7 @@ def python_tables(desc: Description) -> str:
             out.append(f"# [{group['anchor']}]")
             out.append(f"{name.upper()}_BITS: Final[Mapping[int, str]] = {{\n{body}}}")
             out.append(f"{name.upper()}_DEFINED: Final = 0x{sum(1 << b['bit'] for b in group['bits']):02X}")
+            out += [f"{name.upper()}_{b['name']}: Final = 0x{1 << b['bit']:02X}" for b in group["bits"]]
         for g in group.get("groups", ()):
             bits = tuple(range(g["first_bit"], g["first_bit"] + g["count"]))
             out.append(f"# [{group['anchor']}] {g['meaning']} bits where the reference puts them")
@@ -790,6 +791,81 @@ def lua_tables(desc: Description) -> str:
     return "\n".join(out) + "\n"
 
 
+def sigrok_field_spec(f: Field) -> str:
+    kind = "position" if f.struct_words else f.type
+    spec: dict[str, Any] = {"name": f.name, "type": kind, "size": f.width or f.count}
+    if f.is_array or f.type == "text":
+        spec["count"] = f.count
+    for key in ("optional", "nul_in_field", "truncatable", "max_is_format_error"):
+        if f.raw.get(key):
+            spec[key] = True
+    if f.raw.get("max_is_format_error"):
+        spec["max"] = f.raw["max"]
+    if "count_field" in f.raw:
+        spec["count_field"] = f.raw["count_field"]
+    return repr(spec)
+
+
+def sigrok_tables(desc: Description) -> str:
+    raw = desc.raw
+    out = [
+        "# SPDX-License-Identifier: MIT",
+        f"# {GENERATED_NOTE}",
+        "#",
+        "# The protocol description's tables for pd.py (libsigrokdecode's Python has no ctrlbus",
+        "# package, so the tables travel with the decoder): names, bit meanings, request arguments",
+        "# and OK answer layouts.",
+        "",
+    ]
+
+    def names(name: str, values: dict[Any, str]) -> None:
+        body = "".join(f"    0x{number(code):02X}: {text!r},\n" for code, text in values.items())
+        out.append(f"{name} = {{\n{body}}}")
+
+    names("TOP_REQUESTS", {c["cmd"]: c["name"] for c in raw["request_cmds"]})
+    names("RESPONSES", {c["cmd"]: c["name"] for c in raw["response_cmds"]})
+    names("CTRL_REQUESTS", {m.raw["code"]: ("HEALTH_MGMT" if m.subcommand is not None else m.name) for m in desc.messages if m.code is not None})
+    names("HEALTH_SUBS", {m.raw["subcommand"]: m.name for m in desc.messages if m.subcommand is not None})
+    for name, group in raw["values"].items():
+        names(name.upper(), group["values"])
+    names("HEALTH_LEVELS", raw["health"]["levels"])
+    names("HEALTH_COMPONENTS", raw["health"]["components"])
+    for name, group in raw["bits"].items():
+        if "bits" in group:
+            body = "".join(f"    (0x{1 << b['bit']:02X}, {b['meaning']!r}),\n" for b in group["bits"])
+            out.append(f"{name.upper()}_BITS = (\n{body})")
+    out.append("# request arguments after the code (and the HEALTH sub-command)")
+    out.append("REQUEST_ARGS = {")
+    for m in desc.messages:
+        if m.code is not None:
+            out.append(f"    {m.name!r}: ({''.join(sigrok_field_spec(f) + ', ' for f in m.request)}),")
+    out.append("}")
+    out.append("# OK answers with a layout: sizes allowed, fields in wire order")
+    out.append("ANSWERS = {")
+    for m in desc.messages:
+        a = m.answer
+        if m.answer_kind == "empty":
+            out.append(f"    {m.name!r}: {{'sizes': (0,), 'fields': ()}},")
+            continue
+        if a is None or a.custom:
+            continue
+        size: dict[str, Any] = {}
+        if a.bytes_field is not None and "count_field" in a.bytes_field.raw:
+            size = {"min": a.base_size, "count_at": a.base_size - 1}
+        elif a.bytes_field is not None:
+            size = {"min": 0}
+        elif "min_size" in a.raw:
+            size = {"min": a.raw["min_size"], "max": a.full_size}
+        else:
+            size = {"sizes": tuple(sorted({a.base_size, a.full_size}))}
+        if "size_field" in a.raw:
+            size["size_field"] = a.raw["size_field"]
+        fields = "".join(f"        {sigrok_field_spec(f)},\n" for f in a.fields)
+        out.append(f"    {m.name!r}: dict({', '.join(f'{k}={v!r}' for k, v in size.items())}, fields=(\n{fields}    )),")
+    out.append("}")
+    return "\n".join(out) + "\n"
+
+
 # --- the generated outputs -----------------------------------------------------------------
 
 
@@ -803,6 +879,7 @@ BLOCKS: dict[str, list[Block]] = {
 WHOLE_FILES: dict[str, Callable[[Description], str]] = {
     "python/src/ctrlbus/protocol_tables.py": python_tables,
     "tools/wireshark/ctrlbus_protocol.lua": lua_tables,
+    "tools/sigrok/ctrlbus/protocol.py": sigrok_tables,
 }
 
 

@@ -40,6 +40,12 @@ POWER_STATUS_BITS: Final[Mapping[int, str]] = {
     0x20: "dock negotiating",
 }
 POWER_STATUS_DEFINED: Final = 0x3F
+POWER_STATUS_CHARGING: Final = 0x01
+POWER_STATUS_DC_CONNECTED: Final = 0x02
+POWER_STATUS_ON_DOCK: Final = 0x04
+POWER_STATUS_DOCK_DETECTED: Final = 0x08
+POWER_STATUS_DOCK_CONTACTED: Final = 0x10
+POWER_STATUS_DOCK_NEGOTIATING: Final = 0x20
 
 # [motor-data]
 MOTOR_STATUS_BITS: Final[Mapping[int, str]] = {
@@ -47,6 +53,8 @@ MOTOR_STATUS_BITS: Final[Mapping[int, str]] = {
     0x04: "traction lost",
 }
 MOTOR_STATUS_DEFINED: Final = 0x06
+MOTOR_STATUS_STALL: Final = 0x02
+MOTOR_STATUS_TRACTION_LOST: Final = 0x04
 
 # [health-list]
 HEALTH_FLAGS_BITS: Final[Mapping[int, str]] = {
@@ -55,6 +63,9 @@ HEALTH_FLAGS_BITS: Final[Mapping[int, str]] = {
     0x04: "fatal",
 }
 HEALTH_FLAGS_DEFINED: Final = 0x07
+HEALTH_FLAGS_WARNING: Final = 0x01
+HEALTH_FLAGS_ERROR: Final = 0x02
+HEALTH_FLAGS_FATAL: Final = 0x04
 
 # [bumper-data] bumper bits where the reference puts them
 REFERENCE_BUMPERS_BITS: Final = (0, 1)
@@ -69,6 +80,9 @@ CHARGER_PROBE_BITS: Final[Mapping[int, str]] = {
     0x04: "right beacon",
 }
 CHARGER_PROBE_DEFINED: Final = 0x07
+CHARGER_PROBE_LEFT: Final = 0x01
+CHARGER_PROBE_MAIN: Final = 0x02
+CHARGER_PROBE_RIGHT: Final = 0x04
 
 # [error-codes]
 LINE_FAULTS_BITS: Final[Mapping[int, str]] = {
@@ -78,6 +92,10 @@ LINE_FAULTS_BITS: Final[Mapping[int, str]] = {
     0x80: "a frame was ready",
 }
 LINE_FAULTS_DEFINED: Final = 0xF0
+LINE_FAULTS_NOT_SYNCHRONISED: Final = 0x10
+LINE_FAULTS_TOO_LONG: Final = 0x20
+LINE_FAULTS_CHECKSUM: Final = 0x40
+LINE_FAULTS_FRAME_READY: Final = 0x80
 LINE_FAULTS_BELOW: Final = 0x0100
 
 # --- codes
