@@ -8,13 +8,20 @@ BUILD := build
 JOBS  ?= 2
 DEMO_ARGS ?=
 
-.PHONY: all setup c-build c-build-only firmware firmware-only ports c-test c-test-config-off c-test-asan lint py-test test demo size bench fuzz fuzz-smoke clean
+.PHONY: all setup generate c-build c-build-only firmware firmware-only ports c-test c-test-config-off c-test-asan lint py-test test demo size bench fuzz fuzz-smoke clean
 
 all: test
 
 # Everything the test, bench and fuzz jobs use (apt groups, dev tools, the Python 3.10 venv).
 setup:
 	@scripts/setup.sh full
+
+# Every table generated from the protocol description (protocol/ctrlbus.json): the C answer
+# structs, layouts and decoders, ctrlbus.protocol_tables, the Wireshark and sigrok tables and the
+# field tables of docs/protocol.md (scripts/generate_protocol.py: Python's standard library only).
+# tests/test_generated.py (in py-test) fails when a committed file differs from what this writes.
+generate:
+	@python3 scripts/generate_protocol.py
 
 # Host build of the C library, tests and examples (warnings are errors). A Debug build, for our
 # tests: firmware links a Release one (docs/c-library.md).

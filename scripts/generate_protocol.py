@@ -19,8 +19,8 @@ from __future__ import annotations
 import argparse
 import json
 import re
-import textwrap
 import sys
+import textwrap
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -249,7 +249,9 @@ def c_bits(desc: Description) -> str:
             continue
         lines.append(f"/* {group['of']} ([{group['anchor']}]). */")
         for bit in group["bits"]:
-            lines.append(f"#define CTRLBUS_{group['c_prefix']}_{bit['name']} 0x{1 << bit['bit']:02X}u /* {bit['meaning']} */")
+            lines.append(
+                f"#define CTRLBUS_{group['c_prefix']}_{bit['name']} 0x{1 << bit['bit']:02X}u /* {bit['meaning']} */"
+            )
     return "\n".join(lines) + "\n"
 
 
@@ -287,7 +289,9 @@ def c_answer_structs(desc: Description) -> str:
                 emitted.add(f.type)
                 blocks.append(c_position_struct(desc, f.type))
         members = "\n".join(c_members(answer, desc))
-        blocks.append(f"/* {message.name} (docs/protocol.md [{message.anchor}]) */\ntypedef struct {{\n{members}\n}} {c_struct(message)};")
+        blocks.append(
+            f"/* {message.name} (docs/protocol.md [{message.anchor}]) */\ntypedef struct {{\n{members}\n}} {c_struct(message)};"
+        )
     return "\n\n".join(blocks) + "\n"
 
 
@@ -306,23 +310,31 @@ def c_size_macros(desc: Description) -> str:
     for message in desc.messages:
         if message.request or message.subcommand is not None:
             lines.append(f"#define CTRLBUS_{message.name}_REQUEST_SIZE {message.request_size}u")
-    lines.append("/* OK answer payloads. Where the sources know two forms, both are accepted when decoding. */")
+    lines.append(
+        "/* OK answer payloads. Where the sources know two forms, both are accepted when decoding. */"
+    )
     for message in desc.messages:
         answer = message.answer
         if answer is None:
             continue
         prefix = f"CTRLBUS_{message.name}_ANSWER"
         if answer.custom:
-            lines.append(f"#define {prefix}_SIZE {max(answer.raw['sizes'])}u /* or {min(answer.raw['sizes'])} */")
+            lines.append(
+                f"#define {prefix}_SIZE {max(answer.raw['sizes'])}u /* or {min(answer.raw['sizes'])} */"
+            )
         elif answer.bytes_field is not None:
             if "count_field" in answer.bytes_field.raw:
-                lines.append(f"#define {prefix}_MIN {answer.base_size}u /* + {answer.bytes_field.raw['count_field']} */")
+                lines.append(
+                    f"#define {prefix}_MIN {answer.base_size}u /* + {answer.bytes_field.raw['count_field']} */"
+                )
         elif answer.optional_field is not None:
             tail = answer.optional_field
             lines.append(f"#define {prefix}_SIZE {answer.base_size}u /* without {tail.name} */")
             lines.append(f"#define {prefix}_SIZE_{tail.raw['form_name']} {answer.full_size}u")
         elif "min_size" in answer.raw:
-            lines.append(f"#define {prefix}_SIZE {answer.full_size}u /* {answer.raw['min_size']}..{answer.full_size} accepted */")
+            lines.append(
+                f"#define {prefix}_SIZE {answer.full_size}u /* {answer.raw['min_size']}..{answer.full_size} accepted */"
+            )
         else:
             lines.append(f"#define {prefix}_SIZE {answer.full_size}u")
     return "\n".join(lines) + "\n"
@@ -390,7 +402,9 @@ def c_layouts(desc: Description) -> str:
             f"const ctrlbus_codec_field_t ctrlbus_codec_{message.lower}_layout[] CODEC_ROM = {{\n{table}\n}};"
         )
     joined = " &&\n             ".join(checks)
-    check = f"typedef char ctrlbus_codec_layouts_fit_their_structs\n    [{joined}\n         ? 1\n         : -1];"
+    check = (
+        f"typedef char ctrlbus_codec_layouts_fit_their_structs\n    [{joined}\n         ? 1\n         : -1];"
+    )
     return check + "\n\n" + "\n\n".join(blocks) + "\n"
 
 
@@ -459,9 +473,10 @@ def c_decoder(message: Message) -> str:
 
 
 def c_decoders(desc: Description) -> str:
-    return "\n\n".join(
-        c_decoder(m) for m in desc.messages if m.answer is not None and not m.answer.custom
-    ) + "\n"
+    return (
+        "\n\n".join(c_decoder(m) for m in desc.messages if m.answer is not None and not m.answer.custom)
+        + "\n"
+    )
 
 
 # --- Python ----------------------------------------------------------------------------------
@@ -497,7 +512,11 @@ def py_annotation(f: Field) -> str:
         kind = f"tuple[{f.type.capitalize()}Fields, ...]"
     else:
         kind = "tuple[int, ...]" if f.is_array else "int"
-    return f"{kind} | None = None" if f.optional else kind + (f" = {json.dumps(f.raw['default'])}" if "default" in f.raw else "")
+    return (
+        f"{kind} | None = None"
+        if f.optional
+        else kind + (f" = {json.dumps(f.raw['default'])}" if "default" in f.raw else "")
+    )
 
 
 def py_comment(f: Field) -> str:
@@ -525,7 +544,9 @@ def py_fields_class(message: Message, desc: Description) -> str:
     answer = message.answer
     assert answer is not None
     lines = ["@dataclass(frozen=True)", f"class {py_class(message)}:"]
-    lines.append(f'    """The fields of the {message.name} OK answer (docs/protocol.md [{message.anchor}])."""')
+    lines.append(
+        f'    """The fields of the {message.name} OK answer (docs/protocol.md [{message.anchor}])."""'
+    )
     lines.append("")
     plain = [f for f in answer.fields if not f.optional]
     simple = all(f.type in PY_FORMATS for f in answer.fields) and "min_size" not in answer.raw
@@ -545,7 +566,9 @@ def py_fields_class(message: Message, desc: Description) -> str:
         ranges.append(f'"{answer.raw["size_field"]}": ({answer.raw["min_size"]}, {answer.full_size})')
     if ranges:
         lines.append(py_dict("    _RANGES: ClassVar[Mapping[str, tuple[int, int]]]", ranges))
-    arrays = [f'"{f.name}": ({PY_RANGES[f.type]}, {f.count})' for f in plain if f.type in PY_RANGES and f.is_array]
+    arrays = [
+        f'"{f.name}": ({PY_RANGES[f.type]}, {f.count})' for f in plain if f.type in PY_RANGES and f.is_array
+    ]
     if arrays:
         lines.append(py_dict("    _ARRAYS: ClassVar[Mapping[str, tuple[tuple[int, int], int]]]", arrays))
     if answer.bytes_field is not None and "count_field" not in answer.bytes_field.raw:
@@ -554,7 +577,9 @@ def py_fields_class(message: Message, desc: Description) -> str:
     for f in answer.fields:
         lines.append(f"{py_comment(f)}    {f.name}: {py_annotation(f)}")
     if "size_field" in answer.raw:
-        lines.append(f"    # bytes on the wire\n    {answer.raw['size_field']}: int = {answer.raw['size_default']}")
+        lines.append(
+            f"    # bytes on the wire\n    {answer.raw['size_field']}: int = {answer.raw['size_default']}"
+        )
     return "\n".join(lines)
 
 
@@ -650,14 +675,23 @@ def python_tables(desc: Description) -> str:
     out.append(f"HEALTH_TYPES: Final[Mapping[tuple[int, int], str]] = {{\n{body}}}")
     out += ["", "", "# --- answer fields", "", ""]
     classes = [py_struct_class(name, struct) for name, struct in raw["structs"].items()]
-    classes += [py_fields_class(m, desc) for m in desc.messages if m.answer is not None and not m.answer.custom]
+    classes += [
+        py_fields_class(m, desc) for m in desc.messages if m.answer is not None and not m.answer.custom
+    ]
     out.append("\n\n\n".join(classes))
     return "\n".join(out) + "\n"
 
 
 # --- Wireshark (Lua) and sigrok (Python) tables --------------------------------------------------
 
-LUA_TYPES = {"u8": "uint8", "u16": "uint16", "u32": "uint32", "s32": "int32", "text": "string", "bytes": "bytes"}
+LUA_TYPES = {
+    "u8": "uint8",
+    "u16": "uint16",
+    "u32": "uint32",
+    "s32": "int32",
+    "text": "string",
+    "bytes": "bytes",
+}
 
 
 def lua_string(text: str) -> str:
@@ -680,7 +714,10 @@ def contract_fields(desc: Description) -> Iterator[tuple[str, Field]]:
     for message in desc.messages:
         for f in list(message.request) + list(message.answer.fields if message.answer else ()):
             members = (
-                [(f"{f.name}.{m['name']}", Field(m["name"], m["type"], 1, m)) for m in desc.struct_fields(f.type)]
+                [
+                    (f"{f.name}.{m['name']}", Field(m["name"], m["type"], 1, m))
+                    for m in desc.struct_fields(f.type)
+                ]
                 if f.struct_words
                 else [(f.name, f)]
             )
@@ -785,7 +822,9 @@ def lua_tables(desc: Description) -> str:
         if "size_field" in a.raw:
             size.append(f"size_field = {lua_string(a.raw['size_field'])}")
         fields = ",\n            ".join(lua_field_spec(f) for f in a.fields)
-        out.append(f"        {m.name} = {{ {', '.join(size)}, fields = {{\n            {fields},\n        }} }},")
+        out.append(
+            f"        {m.name} = {{ {', '.join(size)}, fields = {{\n            {fields},\n        }} }},"
+        )
     out.append("    },")
     out.append("}")
     return "\n".join(out) + "\n"
@@ -824,7 +863,14 @@ def sigrok_tables(desc: Description) -> str:
 
     names("TOP_REQUESTS", {c["cmd"]: c["name"] for c in raw["request_cmds"]})
     names("RESPONSES", {c["cmd"]: c["name"] for c in raw["response_cmds"]})
-    names("CTRL_REQUESTS", {m.raw["code"]: ("HEALTH_MGMT" if m.subcommand is not None else m.name) for m in desc.messages if m.code is not None})
+    names(
+        "CTRL_REQUESTS",
+        {
+            m.raw["code"]: ("HEALTH_MGMT" if m.subcommand is not None else m.name)
+            for m in desc.messages
+            if m.code is not None
+        },
+    )
     names("HEALTH_SUBS", {m.raw["subcommand"]: m.name for m in desc.messages if m.subcommand is not None})
     for name, group in raw["values"].items():
         names(name.upper(), group["values"])
@@ -861,9 +907,144 @@ def sigrok_tables(desc: Description) -> str:
         if "size_field" in a.raw:
             size["size_field"] = a.raw["size_field"]
         fields = "".join(f"        {sigrok_field_spec(f)},\n" for f in a.fields)
-        out.append(f"    {m.name!r}: dict({', '.join(f'{k}={v!r}' for k, v in size.items())}, fields=(\n{fields}    )),")
+        out.append(
+            f"    {m.name!r}: dict({', '.join(f'{k}={v!r}' for k, v in size.items())}, fields=(\n{fields}    )),"
+        )
     out.append("}")
     return "\n".join(out) + "\n"
+
+
+# --- protocol.md -------------------------------------------------------------------------------
+
+MD_HEADER = "| offset | size | type | unit | field |\n|---|---|---|---|---|\n"
+
+
+def md_type(f: Field) -> str:
+    if f.type == "text":
+        return f"char[{f.count}]"
+    if f.type == "bytes":
+        return "u8[]" if "count_field" in f.raw else "bytes"
+    if f.raw.get("truncatable"):
+        return f"{f.type} (LE, truncated)"
+    return f"{f.type}[{f.count}]" if f.is_array else f.type
+
+
+def md_meaning(f: Field, desc: Description) -> str:
+    parts = []
+    values = f.raw.get("values")
+    if (
+        isinstance(values, str)
+        and values in desc.raw["values"]
+        and len(desc.raw["values"][values]["values"]) <= 3
+    ):
+        hexed = bool(f.raw.get("hex"))
+        parts.append(
+            ", ".join(
+                f"0x{number(k):02X} {v}" if hexed else f"{number(k)} {v}"
+                for k, v in desc.raw["values"][values]["values"].items()
+            )
+        )
+    elif isinstance(values, str):
+        parts.append(f"see [{desc.raw['values'][values]['anchor']}]")
+    if "supported" in f.raw and not f.doc:
+        parts.append(" or ".join(f"0x{number(v):02X}" for v in f.raw["supported"]))
+    bits = f.raw.get("bits")
+    group = desc.raw["bits"].get(bits) if bits else None
+    if group is not None and "bits" in group:
+        parts.append(
+            ", ".join(
+                f"bit{b['bit']} {b['meaning']}" + (" [2020 SDK]" if b["source"] == "sdk2020" else "")
+                for b in group["bits"]
+            )
+        )
+    if f.doc:
+        parts.append(f.doc)
+    return f"`{f.name}`" + (": " + "; ".join(parts).replace("|", "\\|") if parts else "")
+
+
+def md_rows(
+    fields: tuple[Field, ...], desc: Description, offset: int = 0, count_of: dict[str, str] | None = None
+) -> list[str]:
+    rows = []
+    for f in fields:
+        unit = f.raw.get("unit", "—") + (f", {f.raw['scale']}" if "scale" in f.raw else "")
+        if f.type == "bytes":
+            size = f.raw.get("count_field", "the rest")
+        elif f.raw.get("truncatable"):
+            size = f"1..{f.wire_size}"
+        else:
+            size = str(f.wire_size)
+        kind = f"{f.type}[{f.count}]" if f.struct_words else md_type(f)
+        rows.append(f"| {offset} | {size} | {kind} | {unit} | {md_meaning(f, desc)} |")
+        offset += f.wire_size
+    return rows
+
+
+def md_request(message: Message, desc: Description) -> str:
+    rows = []
+    offset = 0
+    if message.code is not None:
+        rows.append(f"| 0 | 1 | u8 | — | request code 0x{message.code:02X} |")
+        offset = 1
+    if message.subcommand is not None:
+        rows.append(f"| 1 | 1 | u8 | — | sub-command 0x{message.subcommand:02X} |")
+        offset = 2
+    return MD_HEADER + "\n".join(rows + md_rows(message.request, desc, offset)) + "\n"
+
+
+def md_answer(message: Message, desc: Description) -> str:
+    assert message.answer is not None
+    return MD_HEADER + "\n".join(md_rows(message.answer.fields, desc)) + "\n"
+
+
+def md_struct(name: str, desc: Description) -> str:
+    fields = tuple(Field(m["name"], m["type"], 1, m) for m in desc.struct_fields(name))
+    return MD_HEADER + "\n".join(md_rows(fields, desc)) + "\n"
+
+
+def md_answer_sizes(message: Message) -> str:
+    answer = message.answer
+    if message.answer_kind == "empty":
+        return "0"
+    if answer is None:
+        return "none defined"
+    if answer.custom:
+        return " or ".join(str(s) for s in answer.raw["sizes"])
+    if answer.bytes_field is not None:
+        count = answer.bytes_field.raw.get("count_field")
+        return f"{answer.base_size} + `{count}`" if count else "any"
+    if "min_size" in answer.raw:
+        return f"{answer.raw['min_size']}..{answer.full_size}"
+    if answer.optional_field is not None:
+        return f"{answer.base_size} or {answer.full_size}"
+    return str(answer.full_size)
+
+
+def md_messages(desc: Description) -> str:
+    rows = [
+        "| code | sub | message | request | OK answer | every base | section |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for m in desc.messages:
+        if m.code is None:
+            continue
+        sub = f"0x{m.subcommand:02X}" if m.subcommand is not None else ""
+        required = "yes" if m.raw.get("required") else ""
+        rows.append(
+            f"| 0x{m.code:02X} | {sub} | {m.name} | {m.request_size} | {md_answer_sizes(m)} | {required} | [{m.anchor}](#{m.anchor}) |"
+        )
+    return "\n".join(rows) + "\n"
+
+
+def protocol_md(desc: Description, text: str, path: str) -> str:
+    text = replace_block(text, "messages", md_messages(desc), path)
+    text = replace_block(text, "struct position", md_struct("position", desc), path)
+    for m in desc.messages:
+        if f"BEGIN GENERATED request {m.name} " in text:
+            text = replace_block(text, f"request {m.name}", md_request(m, desc), path)
+        if f"BEGIN GENERATED answer {m.name} " in text:
+            text = replace_block(text, f"answer {m.name}", md_answer(m, desc), path)
+    return text
 
 
 # --- the generated outputs -----------------------------------------------------------------
@@ -871,11 +1052,17 @@ def sigrok_tables(desc: Description) -> str:
 
 Block = tuple[str, Callable[[Description], str]]
 BLOCKS: dict[str, list[Block]] = {
-    "c/include/ctrlbus/messages.h": [("bits", c_bits), ("sizes", c_size_macros), ("answer structs", c_answer_structs)],
+    "c/include/ctrlbus/messages.h": [
+        ("bits", c_bits),
+        ("sizes", c_size_macros),
+        ("answer structs", c_answer_structs),
+    ],
     "c/src/codec.h": [("layout declarations", c_layout_declarations)],
     "c/src/messages.c": [("layouts", c_layouts)],
     "c/src/messages_master.c": [("decoders", c_decoders)],
 }
+# Files with many blocks, each named after a message: rewritten by one function.
+REWRITES: dict[str, Callable[[Description, str, str], str]] = {"docs/protocol.md": protocol_md}
 WHOLE_FILES: dict[str, Callable[[Description], str]] = {
     "python/src/ctrlbus/protocol_tables.py": python_tables,
     "tools/wireshark/ctrlbus_protocol.lua": lua_tables,
@@ -894,11 +1081,15 @@ def render(repo: Path) -> dict[str, str]:
         out[path] = text
     for path, make in WHOLE_FILES.items():
         out[path] = make(desc)
+    for path, rewrite in REWRITES.items():
+        out[path] = rewrite(desc, (repo / path).read_text(encoding="utf-8"), path)
     return out
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--out", type=Path, help="write under this folder instead of the repository")
     parser.add_argument("--check", action="store_true", help="only say which files are out of date")
     parser.add_argument("--repo", type=Path, default=REPO, help=argparse.SUPPRESS)
