@@ -194,6 +194,9 @@ def _check_answer(answer: Answer) -> None:
     bytes_fields = [f for f in answer.fields if f.type == "bytes"]
     if bytes_fields and answer.fields[-1] is not bytes_fields[0]:
         raise DescriptionError(f"{answer.message}: a bytes field must be the last one")
+    counted = [f.raw["count_field"] for f in bytes_fields if "count_field" in f.raw]
+    if counted and (len(answer.fields) < 2 or answer.fields[-2].name != counted[0] or answer.fields[-2].type != "u8"):
+        raise DescriptionError(f"{answer.message}: a bytes field's count must be the u8 field just before it")
 
 
 # --- marker blocks ---------------------------------------------------------------------------
@@ -408,6 +411,22 @@ def c_layouts(desc: Description) -> str:
     return check + "\n\n" + "\n\n".join(blocks) + "\n"
 
 
+def c_encoders(desc: Description) -> str:
+    """The ANSWER_ENCODERS of messages.c: a fixed layout's check is fixed_size(); any other is the
+    hand-written ctrlbus_<name>_answer_size() (text, forms, counts, limits to check)."""
+    lines = []
+    for m in desc.messages:
+        a = m.answer
+        if a is None or a.custom:
+            continue
+        checked = any(
+            f.type in ("text", "bytes") or f.optional or f.raw.get("max_is_format_error") for f in a.fields
+        ) or "min_size" in a.raw
+        size = f"ctrlbus_{m.lower}_answer_size(a)" if checked else f"fixed_size(a, CTRLBUS_{m.name}_ANSWER_SIZE)"
+        lines.append(f"ANSWER_ENCODERS({m.lower}, {size})")
+    return "\n".join(lines) + "\n"
+
+
 def c_layout_declarations(desc: Description) -> str:
     return "".join(
         f"extern const ctrlbus_codec_field_t ctrlbus_codec_{m.lower}_layout[] CODEC_ROM;\n"
@@ -416,67 +435,65 @@ def c_layout_declarations(desc: Description) -> str:
     )
 
 
-def c_decoder(message: Message) -> str:
+def c_decoding(message: Message) -> tuple[str, str]:
+    """The answer's decoding row (messages_master.c's ctrlbus_codec_decoding_t) and its check."""
     answer = message.answer
     assert answer is not None
+    struct = c_struct(message)
     prefix = f"CTRLBUS_{message.name}_ANSWER"
     tail = answer.optional_field
     blob = answer.bytes_field
-    before: list[str] = []
-    after: list[str] = []
+    length_at = "NONE"
     if tail is not None:
-        form = f"{prefix}_SIZE_{tail.raw['form_name']}"
-        before.append(f"bool with_{tail.name} = len == {form};")
-        size_ok = f"with_{tail.name} || len == {prefix}_SIZE"
-        after.append(f"out->has_{tail.name} = with_{tail.name};")
+        sizing, short, long = "DECODE_EXACT", f"{prefix}_SIZE", f"{prefix}_SIZE_{tail.raw['form_name']}"
+        length_at = f"offsetof({struct}, has_{tail.name})"
     elif blob is not None and "count_field" in blob.raw:
-        counter = next(i for i, f in enumerate(answer.fields) if f.name == blob.raw["count_field"])
-        size_ok = f"payload != NULL && len >= {prefix}_MIN && len == {prefix}_MIN + payload[{counter}]"
+        sizing, short, long = "DECODE_COUNTED", f"{prefix}_MIN", f"{prefix}_MIN"
     elif blob is not None:
-        size_ok = "true"
+        sizing, short, long = "DECODE_ANY", "0u", "0u"
     elif "min_size" in answer.raw:
-        size_ok = f"len >= {answer.raw['min_size']}u && len <= {prefix}_SIZE"
+        sizing, short, long = "DECODE_UP_TO", f"{answer.raw['min_size']}u", f"{prefix}_SIZE"
+        length_at = f"offsetof({struct}, {answer.raw['size_field']})"
     else:
-        size_ok = f"len == {prefix}_SIZE"
+        sizing, short, long = "DECODE_EXACT", f"{prefix}_SIZE", f"{prefix}_SIZE"
+    rest_at = "NONE"
+    checks = []
     if blob is not None:
-        start = f" + {prefix}_MIN" if answer.base_size else ""
-        after.append(f"out->{blob.name} = payload{start};")
+        rest_at = f"offsetof({struct}, {blob.name})"
         if "count_field" not in blob.raw:
-            after.append(f"out->{blob.name}_len = len;")
-    if "size_field" in answer.raw:
-        after.append(f"out->{answer.raw['size_field']} = (uint8_t)len;")
-    limits = [f"out->{f.name} > {f.raw['max']}u" for f in answer.fields if f.raw.get("max_is_format_error")]
+            checks.append(f"offsetof({struct}, {blob.name}_len) == {rest_at} + sizeof(const uint8_t *)")
+    limits = [(f"offsetof({struct}, {f.name})", f"{f.raw['max']}u") for f in answer.fields if f.raw.get("max_is_format_error")]
     limits += [
-        f"out->{f.name}[{c_count(f)} - 1u] != '\\0'" for f in answer.fields if f.raw.get("nul_in_field")
+        (f"offsetof({struct}, {f.name}) + {c_count(f)} - 1u", "0u") for f in answer.fields if f.raw.get("nul_in_field")
     ]
-    lines = [
-        f"int32_t ctrlbus_{message.lower}_answer_decode({c_struct(message)} *out, const uint8_t *payload,",
-        "    size_t len)",
-        "{",
-    ]
-    lines += [f"    {line}" for line in before]
-    lines.append(
-        f"    int32_t result = take_answer(out, sizeof *out, ctrlbus_codec_{message.lower}_layout, payload, len,\n"
-        f"        {size_ok});"
+    if len(limits) > 2 or len({most for _, most in limits}) > 1:
+        raise DescriptionError(f"{message.name}: at most two checked limits, of one value")
+    limits += [("NONE", "0u")] * (2 - len(limits))
+    row = (
+        f"    [DECODING_{message.name}] = {{ctrlbus_codec_{message.lower}_layout, sizeof({struct}), {short}, {long},\n"
+        f"        {sizing}, {length_at}, {rest_at}, {limits[0][1]}, {{{limits[0][0]}, {limits[1][0]}}}}},"
     )
-    if after or limits:
-        lines.append("    if (result < 0) {\n        return result;\n    }")
-        lines += [f"    {line}" for line in after]
-        if limits:
-            lines.append(f"    return {' || '.join(limits)} ? CTRLBUS_ERR_FORMAT : CTRLBUS_OK;")
-        else:
-            lines.append("    return CTRLBUS_OK;")
-    else:
-        lines.append("    return result;")
-    lines.append("}")
-    return "\n".join(lines)
+    offsets = [o for o in (length_at, rest_at, limits[0][0], limits[1][0]) if o != "NONE"]
+    return row, " &&\n             ".join([f"{o} < NONE" for o in offsets] + checks)
 
 
 def c_decoders(desc: Description) -> str:
-    return (
-        "\n\n".join(c_decoder(m) for m in desc.messages if m.answer is not None and not m.answer.custom)
-        + "\n"
-    )
+    messages = [m for m in desc.messages if m.answer is not None and not m.answer.custom]
+    names = ",\n".join(f"    DECODING_{m.name}" for m in messages)
+    rows, checks = zip(*(c_decoding(m) for m in messages), strict=True)
+    out = [
+        f"enum {{\n{names}\n}};",
+        "",
+        "/* Every offset of a decoding fits its byte (NONE, 0xFF, is none). */",
+        "typedef char decoding_offsets_fit_a_byte\n    [" + " &&\n             ".join(c for c in checks if c) + " ? 1 : -1];",
+        "",
+        "static const ctrlbus_codec_decoding_t DECODINGS[] = {",
+        *rows,
+        "};",
+    ]
+    out.append("")
+    out += [f"ANSWER_DECODER({m.lower}, DECODING_{m.name})" for m in messages]
+    return "\n".join(out) + "\n"
 
 
 # --- Python ----------------------------------------------------------------------------------
@@ -1058,7 +1075,7 @@ BLOCKS: dict[str, list[Block]] = {
         ("answer structs", c_answer_structs),
     ],
     "c/src/codec.h": [("layout declarations", c_layout_declarations)],
-    "c/src/messages.c": [("layouts", c_layouts)],
+    "c/src/messages.c": [("layouts", c_layouts), ("encoders", c_encoders)],
     "c/src/messages_master.c": [("decoders", c_decoders)],
 }
 # Files with many blocks, each named after a message: rewritten by one function.

@@ -423,19 +423,6 @@ int32_t ctrlbus_connect_base_answer_size(const ctrlbus_connect_base_answer_t *a)
     return size;
 }
 
-void ctrlbus_connect_base_answer_put(ctrlbus_sink_t *sink, const ctrlbus_connect_base_answer_t *a)
-{
-    put_checked(sink, ctrlbus_connect_base_answer_size(a), ctrlbus_codec_connect_base_layout, a);
-}
-
-int32_t ctrlbus_connect_base_answer_write(ctrlbus_sink_t *sink,
-                                          const ctrlbus_connect_base_answer_t *a,
-                                          ctrlbus_frame_type_t type)
-{
-    return ctrlbus_codec_write_ok(sink, ctrlbus_connect_base_answer_size(a),
-                                  ctrlbus_codec_connect_base_layout, a, type);
-}
-
 /* GET_BASE_CONF */
 
 int32_t ctrlbus_get_base_conf_answer_size(const ctrlbus_get_base_conf_answer_t *a)
@@ -446,90 +433,18 @@ int32_t ctrlbus_get_base_conf_answer_size(const ctrlbus_get_base_conf_answer_t *
     return CTRLBUS_GET_BASE_CONF_ANSWER_SIZE;
 }
 
-void ctrlbus_get_base_conf_answer_put(ctrlbus_sink_t *sink, const ctrlbus_get_base_conf_answer_t *a)
-{
-    put_checked(sink, ctrlbus_get_base_conf_answer_size(a), ctrlbus_codec_get_base_conf_layout, a);
-}
-
-int32_t ctrlbus_get_base_conf_answer_write(ctrlbus_sink_t *sink,
-                                           const ctrlbus_get_base_conf_answer_t *a,
-                                           ctrlbus_frame_type_t type)
-{
-    return ctrlbus_codec_write_ok(sink, ctrlbus_get_base_conf_answer_size(a),
-                                  ctrlbus_codec_get_base_conf_layout, a, type);
-}
-
 /* GET_BASE_CONF_ADV */
 
-static int32_t get_base_conf_adv_size(const ctrlbus_get_base_conf_adv_answer_t *a)
+static int32_t ctrlbus_get_base_conf_adv_answer_size(const ctrlbus_get_base_conf_adv_answer_t *a)
 {
     return a != NULL ? bytes_size(a->blob, a->blob_len) : CTRLBUS_ERR_ARGUMENT;
 }
 
-void ctrlbus_get_base_conf_adv_answer_put(ctrlbus_sink_t *sink,
-                                          const ctrlbus_get_base_conf_adv_answer_t *a)
-{
-    put_checked(sink, get_base_conf_adv_size(a), ctrlbus_codec_get_base_conf_adv_layout, a);
-}
-
-int32_t ctrlbus_get_base_conf_adv_answer_write(ctrlbus_sink_t *sink,
-                                               const ctrlbus_get_base_conf_adv_answer_t *a,
-                                               ctrlbus_frame_type_t type)
-{
-    return ctrlbus_codec_write_ok(sink, get_base_conf_adv_size(a),
-                                  ctrlbus_codec_get_base_conf_adv_layout, a, type);
-}
-
 /* GET_BASE_STATUS */
-
-void ctrlbus_get_base_status_answer_put(ctrlbus_sink_t *sink,
-                                        const ctrlbus_get_base_status_answer_t *a)
-{
-    put_checked(sink, fixed_size(a, CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE),
-                ctrlbus_codec_get_base_status_layout, a);
-}
-
-int32_t ctrlbus_get_base_status_answer_write(ctrlbus_sink_t *sink,
-                                             const ctrlbus_get_base_status_answer_t *a,
-                                             ctrlbus_frame_type_t type)
-{
-    return ctrlbus_codec_write_ok(sink, fixed_size(a, CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE),
-                                  ctrlbus_codec_get_base_status_layout, a, type);
-}
 
 /* GET_BASE_MOTOR_DATA */
 
-void ctrlbus_get_base_motor_data_answer_put(ctrlbus_sink_t *sink,
-                                            const ctrlbus_get_base_motor_data_answer_t *a)
-{
-    put_checked(sink, fixed_size(a, CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE),
-                ctrlbus_codec_get_base_motor_data_layout, a);
-}
-
-int32_t ctrlbus_get_base_motor_data_answer_write(ctrlbus_sink_t *sink,
-                                                 const ctrlbus_get_base_motor_data_answer_t *a,
-                                                 ctrlbus_frame_type_t type)
-{
-    return ctrlbus_codec_write_ok(sink, fixed_size(a, CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE),
-                                  ctrlbus_codec_get_base_motor_data_layout, a, type);
-}
-
 /* GET_BASE_SENSOR_DATA */
-
-void ctrlbus_get_base_sensor_data_answer_put(ctrlbus_sink_t *sink,
-                                             const ctrlbus_get_base_sensor_data_answer_t *a)
-{
-    put_checked(sink, fixed_size(a, CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE),
-                ctrlbus_codec_get_base_sensor_data_layout, a);
-}
-
-int32_t ctrlbus_get_base_sensor_data_answer_write(ctrlbus_sink_t *sink,
-                                                  const ctrlbus_get_base_sensor_data_answer_t *a,
-                                                  ctrlbus_frame_type_t type)
-{
-    return ctrlbus_codec_write_ok(sink, fixed_size(a, CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE),
-                                  ctrlbus_codec_get_base_sensor_data_layout, a, type);
-}
 
 /* GET_BASE_BUMPER_DATA */
 
@@ -545,21 +460,6 @@ int32_t ctrlbus_get_base_bumper_data_answer_size(const ctrlbus_get_base_bumper_d
     return a->payload_size;
 }
 
-void ctrlbus_get_base_bumper_data_answer_put(ctrlbus_sink_t *sink,
-                                             const ctrlbus_get_base_bumper_data_answer_t *a)
-{
-    put_checked(sink, ctrlbus_get_base_bumper_data_answer_size(a),
-                ctrlbus_codec_get_base_bumper_data_layout, a);
-}
-
-int32_t ctrlbus_get_base_bumper_data_answer_write(ctrlbus_sink_t *sink,
-                                                  const ctrlbus_get_base_bumper_data_answer_t *a,
-                                                  ctrlbus_frame_type_t type)
-{
-    return ctrlbus_codec_write_ok(sink, ctrlbus_get_base_bumper_data_answer_size(a),
-                                  ctrlbus_codec_get_base_bumper_data_layout, a, type);
-}
-
 /* GET_CHARGER_DATA */
 
 int32_t ctrlbus_get_charger_data_answer_size(const ctrlbus_get_charger_data_answer_t *a)
@@ -568,21 +468,6 @@ int32_t ctrlbus_get_charger_data_answer_size(const ctrlbus_get_charger_data_answ
         return CTRLBUS_ERR_ARGUMENT;
     }
     return (int32_t)CTRLBUS_GET_CHARGER_DATA_ANSWER_MIN + a->probe_count;
-}
-
-void ctrlbus_get_charger_data_answer_put(ctrlbus_sink_t *sink,
-                                         const ctrlbus_get_charger_data_answer_t *a)
-{
-    put_checked(sink, ctrlbus_get_charger_data_answer_size(a),
-                ctrlbus_codec_get_charger_data_layout, a);
-}
-
-int32_t ctrlbus_get_charger_data_answer_write(ctrlbus_sink_t *sink,
-                                              const ctrlbus_get_charger_data_answer_t *a,
-                                              ctrlbus_frame_type_t type)
-{
-    return ctrlbus_codec_write_ok(sink, ctrlbus_get_charger_data_answer_size(a),
-                                  ctrlbus_codec_get_charger_data_layout, a, type);
 }
 
 /* SET_V_AND_GET_DEADRECKON */
@@ -595,21 +480,6 @@ int32_t ctrlbus_set_v_and_get_deadreckon_answer_size(
     }
     return a->has_timestamp_ms ? CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_WITH_TIMESTAMP
                                : CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE;
-}
-
-void ctrlbus_set_v_and_get_deadreckon_answer_put(
-    ctrlbus_sink_t *sink, const ctrlbus_set_v_and_get_deadreckon_answer_t *a)
-{
-    put_checked(sink, ctrlbus_set_v_and_get_deadreckon_answer_size(a),
-                ctrlbus_codec_set_v_and_get_deadreckon_layout, a);
-}
-
-int32_t ctrlbus_set_v_and_get_deadreckon_answer_write(
-    ctrlbus_sink_t *sink, const ctrlbus_set_v_and_get_deadreckon_answer_t *a,
-    ctrlbus_frame_type_t type)
-{
-    return ctrlbus_codec_write_ok(sink, ctrlbus_set_v_and_get_deadreckon_answer_size(a),
-                                  ctrlbus_codec_set_v_and_get_deadreckon_layout, a, type);
 }
 
 /* POLL_BASE_CMD */
@@ -655,21 +525,6 @@ int32_t ctrlbus_poll_base_cmd_answer_write(ctrlbus_sink_t *sink,
 
 /* HEALTH_GET_HEALTH */
 
-void ctrlbus_health_get_health_answer_put(ctrlbus_sink_t *sink,
-                                          const ctrlbus_health_get_health_answer_t *a)
-{
-    put_checked(sink, fixed_size(a, CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE),
-                ctrlbus_codec_health_get_health_layout, a);
-}
-
-int32_t ctrlbus_health_get_health_answer_write(ctrlbus_sink_t *sink,
-                                               const ctrlbus_health_get_health_answer_t *a,
-                                               ctrlbus_frame_type_t type)
-{
-    return ctrlbus_codec_write_ok(sink, fixed_size(a, CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE),
-                                  ctrlbus_codec_health_get_health_layout, a, type);
-}
-
 /* HEALTH_GET_ERROR */
 
 int32_t ctrlbus_health_get_error_answer_size(const ctrlbus_health_get_error_answer_t *a)
@@ -680,20 +535,32 @@ int32_t ctrlbus_health_get_error_answer_size(const ctrlbus_health_get_error_answ
                      : CTRLBUS_ERR_ARGUMENT;
 }
 
-void ctrlbus_health_get_error_answer_put(ctrlbus_sink_t *sink,
-                                         const ctrlbus_health_get_error_answer_t *a)
-{
-    put_checked(sink, ctrlbus_health_get_error_answer_size(a),
-                ctrlbus_codec_health_get_error_layout, a);
-}
+/* Each answer's public encoders (messages.h): its check (`size`, an expression of the answer `a`),
+ * then its fields through its layout. */
+#define ANSWER_ENCODERS(name, size)                                                                \
+    void ctrlbus_##name##_answer_put(ctrlbus_sink_t *sink, const ctrlbus_##name##_answer_t *a)     \
+    {                                                                                              \
+        put_checked(sink, size, ctrlbus_codec_##name##_layout, a);                                 \
+    }                                                                                              \
+    int32_t ctrlbus_##name##_answer_write(ctrlbus_sink_t *sink, const ctrlbus_##name##_answer_t *a, \
+                                          ctrlbus_frame_type_t type)                               \
+    {                                                                                              \
+        return ctrlbus_codec_write_ok(sink, size, ctrlbus_codec_##name##_layout, a, type);         \
+    }
 
-int32_t ctrlbus_health_get_error_answer_write(ctrlbus_sink_t *sink,
-                                              const ctrlbus_health_get_error_answer_t *a,
-                                              ctrlbus_frame_type_t type)
-{
-    return ctrlbus_codec_write_ok(sink, ctrlbus_health_get_error_answer_size(a),
-                                  ctrlbus_codec_health_get_error_layout, a, type);
-}
+/* BEGIN GENERATED encoders (make generate: from protocol/ctrlbus.json) */
+ANSWER_ENCODERS(connect_base, ctrlbus_connect_base_answer_size(a))
+ANSWER_ENCODERS(get_base_conf, ctrlbus_get_base_conf_answer_size(a))
+ANSWER_ENCODERS(get_base_conf_adv, ctrlbus_get_base_conf_adv_answer_size(a))
+ANSWER_ENCODERS(get_base_status, fixed_size(a, CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE))
+ANSWER_ENCODERS(get_base_motor_data, fixed_size(a, CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE))
+ANSWER_ENCODERS(get_base_sensor_data, fixed_size(a, CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE))
+ANSWER_ENCODERS(get_base_bumper_data, ctrlbus_get_base_bumper_data_answer_size(a))
+ANSWER_ENCODERS(get_charger_data, ctrlbus_get_charger_data_answer_size(a))
+ANSWER_ENCODERS(set_v_and_get_deadreckon, ctrlbus_set_v_and_get_deadreckon_answer_size(a))
+ANSWER_ENCODERS(health_get_health, fixed_size(a, CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE))
+ANSWER_ENCODERS(health_get_error, ctrlbus_health_get_error_answer_size(a))
+/* END GENERATED encoders */
 
 /* Empty OK answers and ERROR answers. */
 
@@ -743,7 +610,7 @@ static int32_t ok_layout(const ctrlbus_answer_t *a, ctrlbus_codec_layout_t *layo
         return ctrlbus_get_base_conf_answer_size(&a->as.get_base_conf);
     case CTRLBUS_REQ_GET_BASE_CONF_ADV:
         *layout = ctrlbus_codec_get_base_conf_adv_layout;
-        return get_base_conf_adv_size(&a->as.get_base_conf_adv);
+        return ctrlbus_get_base_conf_adv_answer_size(&a->as.get_base_conf_adv);
     case CTRLBUS_REQ_GET_BASE_STATUS:
         *layout = ctrlbus_codec_get_base_status_layout;
         return CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE;

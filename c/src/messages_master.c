@@ -62,20 +62,79 @@ static int32_t take_fields(ctrlbus_codec_layout_t layout, void *answer, const ui
     return CTRLBUS_OK;
 }
 
-/* The checks every answer decoder makes (pointers, then the length its layout allows:
- * `size_ok`), then the struct cleared (fields of a shorter form read as zero) and filled. */
-static int32_t take_answer(void *out, size_t out_size, ctrlbus_codec_layout_t layout,
-                           const uint8_t *payload, size_t len, bool size_ok)
+/* How an answer is decoded, beside its layout (the generated DECODINGS below): the payload sizes
+ * its forms allow, the members its length sets, the checks after its fields. Offsets are of the
+ * answer struct; NONE where there is no such member. */
+#define NONE 0xFFu
+typedef enum {
+    DECODE_EXACT,   /* short_size or long_size (the optional tail field's form) */
+    DECODE_UP_TO,   /* short_size..long_size: the last word cut short (the bumper forms) */
+    DECODE_COUNTED, /* short_size + the count in the byte before the BYTES field */
+    DECODE_ANY      /* any length: a BYTES field only */
+} ctrlbus_codec_sizing_t;
+
+typedef struct {
+    ctrlbus_codec_layout_t layout;
+    uint16_t out_size;
+    uint16_t short_size;
+    uint16_t long_size;
+    uint8_t sizing;      /* ctrlbus_codec_sizing_t */
+    uint8_t length_at;   /* a bool: the long form was sent (EXACT), or a uint8_t: the length (UP_TO) */
+    uint8_t rest_at;     /* the BYTES field's pointer: the payload after the fields; for DECODE_ANY
+                          * its size_t length follows it */
+    uint8_t limit_max;   /* what the bytes at limit_at may hold at most (else FORMAT) */
+    uint8_t limit_at[2];
+} ctrlbus_codec_decoding_t;
+
+static bool size_allowed(const ctrlbus_codec_decoding_t *how, const uint8_t *payload, size_t len)
+{
+    switch (how->sizing) {
+    case DECODE_EXACT: return len == how->short_size || len == how->long_size;
+    case DECODE_UP_TO: return len >= how->short_size && len <= how->long_size;
+    case DECODE_COUNTED:
+        return len >= how->short_size && len == how->short_size + payload[how->short_size - 1u];
+    default: return true;
+    }
+}
+
+/* Every answer decoder: pointers checked, then the length its forms allow, then the struct cleared
+ * (fields of a shorter form read as zero), filled through its layout, and checked. */
+static int32_t take_answer(const ctrlbus_codec_decoding_t *how, void *out, const uint8_t *payload,
+                           size_t len)
 {
     if (out == NULL || (payload == NULL && len > 0)) {
         return CTRLBUS_ERR_ARGUMENT;
     }
-    if (!size_ok) {
+    if (!size_allowed(how, payload, len)) {
         return CTRLBUS_ERR_FORMAT;
     }
-    memset(out, 0, out_size);
-    return take_fields(layout, out, payload, len);
+    memset(out, 0, how->out_size);
+    int32_t result = take_fields(how->layout, out, payload, len);
+    uint8_t *bytes = (uint8_t *)out;
+    if (how->length_at != NONE) {
+        bytes[how->length_at] = how->sizing == DECODE_UP_TO ? (uint8_t)len : len == how->long_size;
+    }
+    if (how->rest_at != NONE && payload != NULL) {
+        *(const uint8_t **)(void *)(bytes + how->rest_at) = payload + how->short_size;
+    }
+    if (how->sizing == DECODE_ANY) {
+        *(size_t *)(void *)(bytes + how->rest_at + sizeof(const uint8_t *)) = len;
+    }
+    for (size_t i = 0; i < 2u && result == CTRLBUS_OK; i++) {
+        if (how->limit_at[i] != NONE && bytes[how->limit_at[i]] > how->limit_max) {
+            result = CTRLBUS_ERR_FORMAT;
+        }
+    }
+    return result;
 }
+
+/* A public answer decoder (messages.h): its answer's row of DECODINGS. */
+#define ANSWER_DECODER(name, row)                                                                  \
+    int32_t ctrlbus_##name##_answer_decode(ctrlbus_##name##_answer_t *out, const uint8_t *payload, \
+                                           size_t len)                                             \
+    {                                                                                              \
+        return take_answer(&DECODINGS[row], out, payload, len);                                    \
+    }
 
 /* Common checks of every decoder: pointers, then the exact length. */
 static int32_t check_decode(const void *out, const uint8_t *payload, size_t len, size_t expected)
@@ -229,122 +288,68 @@ int32_t ctrlbus_request_encode(uint8_t *out, size_t out_size, const ctrlbus_requ
 /* ---- answers: one decoder per layout -------------------------------------------------------- */
 
 /* BEGIN GENERATED decoders (make generate: from protocol/ctrlbus.json) */
-int32_t ctrlbus_connect_base_answer_decode(ctrlbus_connect_base_answer_t *out, const uint8_t *payload,
-    size_t len)
-{
-    bool with_firmware_version_suffix = len == CTRLBUS_CONNECT_BASE_ANSWER_SIZE_WITH_SUFFIX;
-    int32_t result = take_answer(out, sizeof *out, ctrlbus_codec_connect_base_layout, payload, len,
-        with_firmware_version_suffix || len == CTRLBUS_CONNECT_BASE_ANSWER_SIZE);
-    if (result < 0) {
-        return result;
-    }
-    out->has_firmware_version_suffix = with_firmware_version_suffix;
-    return CTRLBUS_OK;
-}
+enum {
+    DECODING_CONNECT_BASE,
+    DECODING_GET_BASE_CONF,
+    DECODING_GET_BASE_CONF_ADV,
+    DECODING_GET_BASE_STATUS,
+    DECODING_GET_BASE_MOTOR_DATA,
+    DECODING_GET_BASE_SENSOR_DATA,
+    DECODING_GET_BASE_BUMPER_DATA,
+    DECODING_GET_CHARGER_DATA,
+    DECODING_SET_V_AND_GET_DEADRECKON,
+    DECODING_HEALTH_GET_HEALTH,
+    DECODING_HEALTH_GET_ERROR
+};
 
-int32_t ctrlbus_get_base_conf_answer_decode(ctrlbus_get_base_conf_answer_t *out, const uint8_t *payload,
-    size_t len)
-{
-    int32_t result = take_answer(out, sizeof *out, ctrlbus_codec_get_base_conf_layout, payload, len,
-        len == CTRLBUS_GET_BASE_CONF_ANSWER_SIZE);
-    if (result < 0) {
-        return result;
-    }
-    return out->sensor_num > 8u || out->bumper_num > 8u ? CTRLBUS_ERR_FORMAT : CTRLBUS_OK;
-}
+/* Every offset of a decoding fits its byte (NONE, 0xFF, is none). */
+typedef char decoding_offsets_fit_a_byte
+    [offsetof(ctrlbus_connect_base_answer_t, has_firmware_version_suffix) < NONE &&
+             offsetof(ctrlbus_get_base_conf_answer_t, sensor_num) < NONE &&
+             offsetof(ctrlbus_get_base_conf_answer_t, bumper_num) < NONE &&
+             offsetof(ctrlbus_get_base_conf_adv_answer_t, blob) < NONE &&
+             offsetof(ctrlbus_get_base_conf_adv_answer_t, blob_len) == offsetof(ctrlbus_get_base_conf_adv_answer_t, blob) + sizeof(const uint8_t *) &&
+             offsetof(ctrlbus_get_base_bumper_data_answer_t, payload_size) < NONE &&
+             offsetof(ctrlbus_get_charger_data_answer_t, probes) < NONE &&
+             offsetof(ctrlbus_set_v_and_get_deadreckon_answer_t, has_timestamp_ms) < NONE &&
+             offsetof(ctrlbus_health_get_error_answer_t, message) + CTRLBUS_HEALTH_MESSAGE_LEN - 1u < NONE ? 1 : -1];
 
-int32_t ctrlbus_get_base_conf_adv_answer_decode(ctrlbus_get_base_conf_adv_answer_t *out, const uint8_t *payload,
-    size_t len)
-{
-    int32_t result = take_answer(out, sizeof *out, ctrlbus_codec_get_base_conf_adv_layout, payload, len,
-        true);
-    if (result < 0) {
-        return result;
-    }
-    out->blob = payload;
-    out->blob_len = len;
-    return CTRLBUS_OK;
-}
+static const ctrlbus_codec_decoding_t DECODINGS[] = {
+    [DECODING_CONNECT_BASE] = {ctrlbus_codec_connect_base_layout, sizeof(ctrlbus_connect_base_answer_t), CTRLBUS_CONNECT_BASE_ANSWER_SIZE, CTRLBUS_CONNECT_BASE_ANSWER_SIZE_WITH_SUFFIX,
+        DECODE_EXACT, offsetof(ctrlbus_connect_base_answer_t, has_firmware_version_suffix), NONE, 0u, {NONE, NONE}},
+    [DECODING_GET_BASE_CONF] = {ctrlbus_codec_get_base_conf_layout, sizeof(ctrlbus_get_base_conf_answer_t), CTRLBUS_GET_BASE_CONF_ANSWER_SIZE, CTRLBUS_GET_BASE_CONF_ANSWER_SIZE,
+        DECODE_EXACT, NONE, NONE, 8u, {offsetof(ctrlbus_get_base_conf_answer_t, sensor_num), offsetof(ctrlbus_get_base_conf_answer_t, bumper_num)}},
+    [DECODING_GET_BASE_CONF_ADV] = {ctrlbus_codec_get_base_conf_adv_layout, sizeof(ctrlbus_get_base_conf_adv_answer_t), 0u, 0u,
+        DECODE_ANY, NONE, offsetof(ctrlbus_get_base_conf_adv_answer_t, blob), 0u, {NONE, NONE}},
+    [DECODING_GET_BASE_STATUS] = {ctrlbus_codec_get_base_status_layout, sizeof(ctrlbus_get_base_status_answer_t), CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE, CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE,
+        DECODE_EXACT, NONE, NONE, 0u, {NONE, NONE}},
+    [DECODING_GET_BASE_MOTOR_DATA] = {ctrlbus_codec_get_base_motor_data_layout, sizeof(ctrlbus_get_base_motor_data_answer_t), CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE, CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE,
+        DECODE_EXACT, NONE, NONE, 0u, {NONE, NONE}},
+    [DECODING_GET_BASE_SENSOR_DATA] = {ctrlbus_codec_get_base_sensor_data_layout, sizeof(ctrlbus_get_base_sensor_data_answer_t), CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE, CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE,
+        DECODE_EXACT, NONE, NONE, 0u, {NONE, NONE}},
+    [DECODING_GET_BASE_BUMPER_DATA] = {ctrlbus_codec_get_base_bumper_data_layout, sizeof(ctrlbus_get_base_bumper_data_answer_t), 1u, CTRLBUS_GET_BASE_BUMPER_DATA_ANSWER_SIZE,
+        DECODE_UP_TO, offsetof(ctrlbus_get_base_bumper_data_answer_t, payload_size), NONE, 0u, {NONE, NONE}},
+    [DECODING_GET_CHARGER_DATA] = {ctrlbus_codec_get_charger_data_layout, sizeof(ctrlbus_get_charger_data_answer_t), CTRLBUS_GET_CHARGER_DATA_ANSWER_MIN, CTRLBUS_GET_CHARGER_DATA_ANSWER_MIN,
+        DECODE_COUNTED, NONE, offsetof(ctrlbus_get_charger_data_answer_t, probes), 0u, {NONE, NONE}},
+    [DECODING_SET_V_AND_GET_DEADRECKON] = {ctrlbus_codec_set_v_and_get_deadreckon_layout, sizeof(ctrlbus_set_v_and_get_deadreckon_answer_t), CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE, CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_WITH_TIMESTAMP,
+        DECODE_EXACT, offsetof(ctrlbus_set_v_and_get_deadreckon_answer_t, has_timestamp_ms), NONE, 0u, {NONE, NONE}},
+    [DECODING_HEALTH_GET_HEALTH] = {ctrlbus_codec_health_get_health_layout, sizeof(ctrlbus_health_get_health_answer_t), CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE, CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE,
+        DECODE_EXACT, NONE, NONE, 0u, {NONE, NONE}},
+    [DECODING_HEALTH_GET_ERROR] = {ctrlbus_codec_health_get_error_layout, sizeof(ctrlbus_health_get_error_answer_t), CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE, CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE,
+        DECODE_EXACT, NONE, NONE, 0u, {offsetof(ctrlbus_health_get_error_answer_t, message) + CTRLBUS_HEALTH_MESSAGE_LEN - 1u, NONE}},
+};
 
-int32_t ctrlbus_get_base_status_answer_decode(ctrlbus_get_base_status_answer_t *out, const uint8_t *payload,
-    size_t len)
-{
-    int32_t result = take_answer(out, sizeof *out, ctrlbus_codec_get_base_status_layout, payload, len,
-        len == CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE);
-    return result;
-}
-
-int32_t ctrlbus_get_base_motor_data_answer_decode(ctrlbus_get_base_motor_data_answer_t *out, const uint8_t *payload,
-    size_t len)
-{
-    int32_t result = take_answer(out, sizeof *out, ctrlbus_codec_get_base_motor_data_layout, payload, len,
-        len == CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE);
-    return result;
-}
-
-int32_t ctrlbus_get_base_sensor_data_answer_decode(ctrlbus_get_base_sensor_data_answer_t *out, const uint8_t *payload,
-    size_t len)
-{
-    int32_t result = take_answer(out, sizeof *out, ctrlbus_codec_get_base_sensor_data_layout, payload, len,
-        len == CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE);
-    return result;
-}
-
-int32_t ctrlbus_get_base_bumper_data_answer_decode(ctrlbus_get_base_bumper_data_answer_t *out, const uint8_t *payload,
-    size_t len)
-{
-    int32_t result = take_answer(out, sizeof *out, ctrlbus_codec_get_base_bumper_data_layout, payload, len,
-        len >= 1u && len <= CTRLBUS_GET_BASE_BUMPER_DATA_ANSWER_SIZE);
-    if (result < 0) {
-        return result;
-    }
-    out->payload_size = (uint8_t)len;
-    return CTRLBUS_OK;
-}
-
-int32_t ctrlbus_get_charger_data_answer_decode(ctrlbus_get_charger_data_answer_t *out, const uint8_t *payload,
-    size_t len)
-{
-    int32_t result = take_answer(out, sizeof *out, ctrlbus_codec_get_charger_data_layout, payload, len,
-        payload != NULL && len >= CTRLBUS_GET_CHARGER_DATA_ANSWER_MIN && len == CTRLBUS_GET_CHARGER_DATA_ANSWER_MIN + payload[1]);
-    if (result < 0) {
-        return result;
-    }
-    out->probes = payload + CTRLBUS_GET_CHARGER_DATA_ANSWER_MIN;
-    return CTRLBUS_OK;
-}
-
-int32_t ctrlbus_set_v_and_get_deadreckon_answer_decode(ctrlbus_set_v_and_get_deadreckon_answer_t *out, const uint8_t *payload,
-    size_t len)
-{
-    bool with_timestamp_ms = len == CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_WITH_TIMESTAMP;
-    int32_t result = take_answer(out, sizeof *out, ctrlbus_codec_set_v_and_get_deadreckon_layout, payload, len,
-        with_timestamp_ms || len == CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE);
-    if (result < 0) {
-        return result;
-    }
-    out->has_timestamp_ms = with_timestamp_ms;
-    return CTRLBUS_OK;
-}
-
-int32_t ctrlbus_health_get_health_answer_decode(ctrlbus_health_get_health_answer_t *out, const uint8_t *payload,
-    size_t len)
-{
-    int32_t result = take_answer(out, sizeof *out, ctrlbus_codec_health_get_health_layout, payload, len,
-        len == CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE);
-    return result;
-}
-
-int32_t ctrlbus_health_get_error_answer_decode(ctrlbus_health_get_error_answer_t *out, const uint8_t *payload,
-    size_t len)
-{
-    int32_t result = take_answer(out, sizeof *out, ctrlbus_codec_health_get_error_layout, payload, len,
-        len == CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE);
-    if (result < 0) {
-        return result;
-    }
-    return out->message[CTRLBUS_HEALTH_MESSAGE_LEN - 1u] != '\0' ? CTRLBUS_ERR_FORMAT : CTRLBUS_OK;
-}
+ANSWER_DECODER(connect_base, DECODING_CONNECT_BASE)
+ANSWER_DECODER(get_base_conf, DECODING_GET_BASE_CONF)
+ANSWER_DECODER(get_base_conf_adv, DECODING_GET_BASE_CONF_ADV)
+ANSWER_DECODER(get_base_status, DECODING_GET_BASE_STATUS)
+ANSWER_DECODER(get_base_motor_data, DECODING_GET_BASE_MOTOR_DATA)
+ANSWER_DECODER(get_base_sensor_data, DECODING_GET_BASE_SENSOR_DATA)
+ANSWER_DECODER(get_base_bumper_data, DECODING_GET_BASE_BUMPER_DATA)
+ANSWER_DECODER(get_charger_data, DECODING_GET_CHARGER_DATA)
+ANSWER_DECODER(set_v_and_get_deadreckon, DECODING_SET_V_AND_GET_DEADRECKON)
+ANSWER_DECODER(health_get_health, DECODING_HEALTH_GET_HEALTH)
+ANSWER_DECODER(health_get_error, DECODING_HEALTH_GET_ERROR)
 /* END GENERATED decoders */
 
 /* POLL_BASE_CMD: three forms (messages.h), no layout. */
