@@ -334,12 +334,19 @@ def c_size_macros(desc: Description) -> str:
             tail = answer.optional_field
             lines.append(f"#define {prefix}_SIZE {answer.base_size}u /* without {tail.name} */")
             lines.append(f"#define {prefix}_SIZE_{tail.raw['form_name']} {answer.full_size}u")
+            if tail.type in WIDTHS:
+                lines.append(f"/* The form a {c_struct(message)} asks for (its has_{tail.name}). */")
+                lines.append(
+                    f"#define {prefix}_SIZE_OF(answer) \\\n"
+                    f"    ((answer)->has_{tail.name} ? {prefix}_SIZE_{tail.raw['form_name']} : {prefix}_SIZE)"
+                )
         elif "min_size" in answer.raw:
             lines.append(
                 f"#define {prefix}_SIZE {answer.full_size}u /* {answer.raw['min_size']}..{answer.full_size} accepted */"
             )
         else:
             lines.append(f"#define {prefix}_SIZE {answer.full_size}u")
+            lines.append(f"#define {prefix}_SIZE_OF(answer) {prefix}_SIZE /* one form */")
     return "\n".join(lines) + "\n"
 
 
@@ -419,10 +426,16 @@ def c_encoders(desc: Description) -> str:
         a = m.answer
         if a is None or a.custom:
             continue
-        checked = any(
-            f.type in ("text", "bytes") or f.optional or f.raw.get("max_is_format_error") for f in a.fields
-        ) or "min_size" in a.raw
-        size = f"ctrlbus_{m.lower}_answer_size(a)" if checked else f"fixed_size(a, CTRLBUS_{m.name}_ANSWER_SIZE)"
+        checked = (
+            any(f.type in ("text", "bytes") or f.raw.get("max_is_format_error") for f in a.fields)
+            or "min_size" in a.raw
+        )
+        if checked:
+            size = f"ctrlbus_{m.lower}_answer_size(a)"
+        elif a.optional_field is not None:
+            size = f"a != NULL ? (int32_t)CTRLBUS_{m.name}_ANSWER_SIZE_OF(a) : CTRLBUS_ERR_ARGUMENT"
+        else:
+            size = f"fixed_size(a, CTRLBUS_{m.name}_ANSWER_SIZE)"
         lines.append(f"ANSWER_ENCODERS({m.lower}, {size})")
     return "\n".join(lines) + "\n"
 
@@ -572,10 +585,12 @@ def py_fields_class(message: Message, desc: Description) -> str:
     if answer.optional_field is not None:
         lines.append(py_struct("_REFERENCE_FORM: ClassVar[struct.Struct]", py_format(tuple(plain), desc)))
         lines.append(py_struct("_SDK_FORM: ClassVar[struct.Struct]", py_format(answer.fields, desc)))
+        lines.append("    _FORMS: ClassVar[tuple[struct.Struct, struct.Struct] | None] = (_REFERENCE_FORM, _SDK_FORM)")
+        lines.append(f'    _TAIL: ClassVar[str | None] = "{answer.optional_field.name}"')
     elif not simple and answer.bytes_field is None and "min_size" not in answer.raw:
         lines.append(py_struct("_WIRE: ClassVar[struct.Struct]", py_format(answer.fields, desc)))
     ranges = []
-    for f in plain:
+    for f in answer.fields:
         if f.type in PY_RANGES and not f.is_array:
             limit = f"(0, {f.raw['max']})" if f.raw.get("max_is_format_error") else PY_RANGES[f.type]
             ranges.append(f'"{f.name}": {limit}')

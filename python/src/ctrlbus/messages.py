@@ -330,6 +330,10 @@ class Message:
     NAME: ClassVar[str]
     # Fields whose layout is fixed: packed and unpacked in field order with this struct.
     _LAYOUT: ClassVar[struct.Struct | None] = None
+    # Or a layout whose last field, _TAIL, is optional (None: not sent): the form without it and
+    # the form with it (docs/protocol.md [profiles]).
+    _FORMS: ClassVar[tuple[struct.Struct, struct.Struct] | None] = None
+    _TAIL: ClassVar[str | None] = None
     # Integer fields and their allowed ranges, checked on construction.
     _RANGES: ClassVar[Mapping[str, tuple[int, int]]] = {}
     # Fields holding bytes; bytearray/memoryview given for them are stored as bytes.
@@ -356,7 +360,9 @@ class Message:
                 _check_int(owner, name, item, limits)
             object.__setattr__(self, name, tuple(value))
         for name, limits in self._RANGES.items():
-            _check_int(owner, name, getattr(self, name), limits)
+            value = getattr(self, name)
+            if value is not None or name != self._TAIL:
+                _check_int(owner, name, value, limits)
         self._check()
 
     def _check(self) -> None:
@@ -364,13 +370,17 @@ class Message:
 
     def _pack(self) -> bytes:
         """The message's own bytes (after the request code / sub-command for control-bus requests)."""
-        if self._LAYOUT is None:
+        layout = self._LAYOUT or (self._FORMS[1] if self._FORMS else None)
+        if layout is None:
             return b""
         values: list[Any] = []
         for item in dataclass_fields(self):
             value = getattr(self, item.name)
+            if value is None and item.name == self._TAIL:
+                layout = self._FORMS[0] if self._FORMS else layout
+                continue
             values.extend(value if isinstance(value, tuple) else (value,))
-        return self._LAYOUT.pack(*values)
+        return layout.pack(*values)
 
     @classmethod
     def _label(cls) -> str:
@@ -380,19 +390,26 @@ class Message:
     @classmethod
     def _unpack(cls, data: bytes) -> Self:
         """Inverse of _pack; raises MessageFormatError on a wrong length or value."""
-        if cls._LAYOUT is None:
+        layout = cls._LAYOUT
+        if layout is None and cls._FORMS is not None:
+            short, long = cls._FORMS
+            _check_length(cls._label(), data, short.size, long.size, what=cls._PART)
+            layout = long if len(data) == long.size else short
+        elif layout is None:
             _check_length(cls._label(), data, 0, what=cls._PART)
             return cls()
-        _check_length(cls._label(), data, cls._LAYOUT.size, what=cls._PART)
-        values = list(cls._LAYOUT.unpack(data))
+        else:
+            _check_length(cls._label(), data, layout.size, what=cls._PART)
+        values = list(layout.unpack(data))
         arguments: list[Any] = []
         for item in dataclass_fields(cls):
             if item.name in cls._ARRAYS:
                 count = cls._ARRAYS[item.name][1]
                 arguments.append(tuple(values[:count]))
                 del values[:count]
-            else:
+            elif values:
                 arguments.append(values.pop(0))
+            # else: the optional tail of the shorter form, left at its default None
         return cls(*arguments)
 
 
@@ -981,10 +998,6 @@ class SetVAndGetDeadreckonAnswer(SetVAndGetDeadreckonAnswerFields, OkAnswer):
     """Motion since the previous call, Q16: dx, dy in mm, dtheta in DEGREES (anticlockwise).
     `timestamp_ms` is None in the 13-byte (reference) form, set in the 17-byte SDK form."""
 
-    def _check(self) -> None:
-        if self.timestamp_ms is not None:
-            _check_int("SetVAndGetDeadreckonAnswer", "timestamp_ms", self.timestamp_ms, U32)
-
     @classmethod
     def from_si(
         cls, dx_mm: float, dy_mm: float, dtheta_deg: float, status: int = 0, timestamp_ms: int | None = None
@@ -1002,19 +1015,6 @@ class SetVAndGetDeadreckonAnswer(SetVAndGetDeadreckonAnswerFields, OkAnswer):
     @property
     def dtheta_deg(self) -> float:
         return from_q16(self.dtheta_deg_q16)
-
-    def _pack(self) -> bytes:
-        head = (self.dx_mm_q16, self.dy_mm_q16, self.dtheta_deg_q16, self.status)
-        if self.timestamp_ms is None:
-            return self._REFERENCE_FORM.pack(*head)
-        return self._SDK_FORM.pack(*head, self.timestamp_ms)
-
-    @classmethod
-    def _unpack(cls, data: bytes) -> Self:
-        _check_length("SET_V_AND_GET_DEADRECKON answer", data, 13, 17)
-        if len(data) == 17:
-            return cls(*cls._SDK_FORM.unpack(data))
-        return cls(*cls._REFERENCE_FORM.unpack(data))
 
 
 @dataclass(frozen=True)

@@ -214,6 +214,8 @@ class ConnectBaseAnswerFields:
 
     _REFERENCE_FORM: ClassVar[struct.Struct] = struct.Struct("<12sHH3I")
     _SDK_FORM: ClassVar[struct.Struct] = struct.Struct("<12sHH3I11s")
+    _FORMS: ClassVar[tuple[struct.Struct, struct.Struct] | None] = (_REFERENCE_FORM, _SDK_FORM)
+    _TAIL: ClassVar[str | None] = "firmware_version_suffix"
     _RANGES: ClassVar[Mapping[str, tuple[int, int]]] = {
         "firmware_version": U16,
         "hardware_version": U16,
@@ -359,11 +361,14 @@ class SetVAndGetDeadreckonAnswerFields:
 
     _REFERENCE_FORM: ClassVar[struct.Struct] = struct.Struct("<iiiB")
     _SDK_FORM: ClassVar[struct.Struct] = struct.Struct("<iiiBI")
+    _FORMS: ClassVar[tuple[struct.Struct, struct.Struct] | None] = (_REFERENCE_FORM, _SDK_FORM)
+    _TAIL: ClassVar[str | None] = "timestamp_ms"
     _RANGES: ClassVar[Mapping[str, tuple[int, int]]] = {
         "dx_mm_q16": S32,
         "dy_mm_q16": S32,
         "dtheta_deg_q16": S32,
         "status": U8,
+        "timestamp_ms": U32,
     }
 
     # mm, Q16
