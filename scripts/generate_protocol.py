@@ -509,6 +509,71 @@ def c_decoders(desc: Description) -> str:
     return "\n".join(out) + "\n"
 
 
+def c_test_fields(desc: Description) -> str:
+    """c/tests/answer_fields.h: each OK answer's fields by contract name, where its struct keeps
+    them: what the C tests compare with the vectors' fields."""
+    out = [
+        "/* SPDX-License-Identifier: MIT */",
+        f"/* {GENERATED_NOTE} */",
+        "/* Test support: each OK answer's fields by their contract names (msg_fields.c walks them). */",
+        "#ifndef CTRLBUS_TEST_ANSWER_FIELDS_H",
+        "#define CTRLBUS_TEST_ANSWER_FIELDS_H",
+        "",
+        "#include <stddef.h>",
+        "",
+        '#include "ctrlbus/messages.h"',
+        "",
+        "#define ANSWER_FIELD_NONE ((size_t)-1)",
+        "typedef enum { AF_U8, AF_U16, AF_U32, AF_S32, AF_TEXT, AF_BYTES, AF_POSITIONS } answer_field_kind_t;",
+        "typedef struct {",
+        "    const char *name;",
+        "    size_t offset;   /* in the answer struct */",
+        "    answer_field_kind_t kind;",
+        "    size_t count;    /* array items (0: a scalar) */",
+        "    size_t has_at;   /* the bool saying an optional field was sent, or NONE */",
+        "    size_t len_at;   /* AF_BYTES: its size_t length, or NONE (then count_at) */",
+        "    size_t count_at; /* AF_BYTES: the uint8_t count of its bytes, or NONE */",
+        "} answer_field_t;",
+        "typedef struct {",
+        "    ctrlbus_req_kind_t to;",
+        "    const answer_field_t *fields;",
+        "    size_t count;",
+        "} answer_fields_t;",
+        "",
+    ]
+    tables = []
+    for m in desc.messages:
+        a = m.answer
+        if a is None or a.custom:
+            continue
+        struct = c_struct(m)
+        rows = []
+        fields = list(a.fields)
+        for f in fields:
+            kind = {"u8": "AF_U8", "u16": "AF_U16", "u32": "AF_U32", "s32": "AF_S32", "text": "AF_TEXT", "bytes": "AF_BYTES"}.get(f.type, "AF_POSITIONS")
+            count = f"{f.count}u" if (f.is_array or f.struct_words) else "0u"
+            has_at = f"offsetof({struct}, has_{f.name})" if f.optional else "ANSWER_FIELD_NONE"
+            len_at = count_at = "ANSWER_FIELD_NONE"
+            if f.type == "bytes" and "count_field" in f.raw:
+                count_at = f"offsetof({struct}, {f.raw['count_field']})"
+            elif f.type == "bytes":
+                len_at = f"offsetof({struct}, {f.name}_len)"
+            rows.append(f'    {{"{f.name}", offsetof({struct}, {f.name}), {kind}, {count}, {has_at}, {len_at}, {count_at}}},')
+        if "size_field" in a.raw:
+            name = a.raw["size_field"]
+            rows.append(f'    {{"{name}", offsetof({struct}, {name}), AF_U8, 0u, ANSWER_FIELD_NONE, ANSWER_FIELD_NONE, ANSWER_FIELD_NONE}},')
+        out.append(f"static const answer_field_t {m.name}_FIELDS[] = {{")
+        out += rows
+        out.append("};")
+        tables.append(f"    {{CTRLBUS_REQ_{m.name}, {m.name}_FIELDS, sizeof {m.name}_FIELDS / sizeof {m.name}_FIELDS[0]}},")
+    out.append("")
+    out.append("static const answer_fields_t ANSWER_FIELDS[] = {")
+    out += tables
+    out.append("};")
+    out += ["", "#endif"]
+    return "\n".join(out) + "\n"
+
+
 # --- Python ----------------------------------------------------------------------------------
 
 PY_FORMATS = {"u8": "B", "u16": "H", "u32": "I", "s32": "i"}
@@ -1096,6 +1161,7 @@ BLOCKS: dict[str, list[Block]] = {
 # Files with many blocks, each named after a message: rewritten by one function.
 REWRITES: dict[str, Callable[[Description, str, str], str]] = {"docs/protocol.md": protocol_md}
 WHOLE_FILES: dict[str, Callable[[Description], str]] = {
+    "c/tests/answer_fields.h": c_test_fields,
     "python/src/ctrlbus/protocol_tables.py": python_tables,
     "tools/wireshark/ctrlbus_protocol.lua": lua_tables,
     "tools/sigrok/ctrlbus/protocol.py": sigrok_tables,
