@@ -519,6 +519,7 @@ def c_test_fields(desc: Description) -> str:
         "#ifndef CTRLBUS_TEST_ANSWER_FIELDS_H",
         "#define CTRLBUS_TEST_ANSWER_FIELDS_H",
         "",
+        "#include <stdbool.h>",
         "#include <stddef.h>",
         "",
         '#include "ctrlbus/messages.h"',
@@ -566,6 +567,29 @@ def c_test_fields(desc: Description) -> str:
         out += rows
         out.append("};")
         tables.append(f"    {{CTRLBUS_REQ_{m.name}, {m.name}_FIELDS, sizeof {m.name}_FIELDS / sizeof {m.name}_FIELDS[0]}},")
+    out.append("")
+    out.append("/* The OK payload lengths the description allows (a counted answer: with a count of 3). */")
+    out.append("static inline bool answer_length_allowed(ctrlbus_req_kind_t to, size_t len)")
+    out.append("{")
+    out.append("    switch (to) {")
+    for m in desc.messages:
+        a = m.answer
+        if a is None or m.name == "GET_AUXILIARY_ANCHOR":
+            continue
+        if a.custom:
+            rule = " || ".join(f"len == {s}u" for s in a.raw["sizes"])
+        elif a.bytes_field is not None and "count_field" in a.bytes_field.raw:
+            rule = f"len == {a.base_size}u + 3u"
+        elif a.bytes_field is not None:
+            rule = "true"
+        elif "min_size" in a.raw:
+            rule = f"len >= {a.raw['min_size']}u && len <= {a.full_size}u"
+        else:
+            rule = " || ".join(f"len == {s}u" for s in sorted({a.base_size, a.full_size}))
+        out.append(f"    case CTRLBUS_REQ_{m.name}: return {rule};")
+    out.append("    default: return len == 0u; /* the empty OK answers */")
+    out.append("    }")
+    out.append("}")
     out.append("")
     out.append("static const answer_fields_t ANSWER_FIELDS[] = {")
     out += tables

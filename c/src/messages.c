@@ -610,13 +610,13 @@ static int32_t ok_layout(const ctrlbus_answer_t *a, ctrlbus_codec_layout_t *layo
         return ctrlbus_get_base_conf_adv_answer_size(&a->as.get_base_conf_adv);
     case CTRLBUS_REQ_GET_BASE_STATUS:
         *layout = ctrlbus_codec_get_base_status_layout;
-        return CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE;
+        return (int32_t)CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE_OF(&a->as.get_base_status);
     case CTRLBUS_REQ_GET_BASE_MOTOR_DATA:
         *layout = ctrlbus_codec_get_base_motor_data_layout;
-        return CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE;
+        return (int32_t)CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE_OF(&a->as.get_base_motor_data);
     case CTRLBUS_REQ_GET_BASE_SENSOR_DATA:
         *layout = ctrlbus_codec_get_base_sensor_data_layout;
-        return CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE;
+        return (int32_t)CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE_OF(&a->as.get_base_sensor_data);
     case CTRLBUS_REQ_GET_BASE_BUMPER_DATA:
         *layout = ctrlbus_codec_get_base_bumper_data_layout;
         return ctrlbus_get_base_bumper_data_answer_size(&a->as.get_base_bumper_data);
@@ -630,7 +630,7 @@ static int32_t ok_layout(const ctrlbus_answer_t *a, ctrlbus_codec_layout_t *layo
         return ctrlbus_poll_base_cmd_answer_size(&a->as.poll_base_cmd);
     case CTRLBUS_REQ_HEALTH_GET_HEALTH:
         *layout = ctrlbus_codec_health_get_health_layout;
-        return CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE;
+        return (int32_t)CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE_OF(&a->as.health_get_health);
     case CTRLBUS_REQ_HEALTH_GET_ERROR:
         *layout = ctrlbus_codec_health_get_error_layout;
         return ctrlbus_health_get_error_answer_size(&a->as.health_get_error);

@@ -4,6 +4,7 @@
 #ifndef CTRLBUS_TEST_ANSWER_FIELDS_H
 #define CTRLBUS_TEST_ANSWER_FIELDS_H
 
+#include <stdbool.h>
 #include <stddef.h>
 
 #include "ctrlbus/messages.h"
@@ -80,6 +81,26 @@ static const answer_field_t HEALTH_GET_ERROR_FIELDS[] = {
     {"error_code", offsetof(ctrlbus_health_get_error_answer_t, error_code), AF_U32, 0u, ANSWER_FIELD_NONE, ANSWER_FIELD_NONE, ANSWER_FIELD_NONE},
     {"message", offsetof(ctrlbus_health_get_error_answer_t, message), AF_TEXT, 0u, ANSWER_FIELD_NONE, ANSWER_FIELD_NONE, ANSWER_FIELD_NONE},
 };
+
+/* The OK payload lengths the description allows (a counted answer: with a count of 3). */
+static inline bool answer_length_allowed(ctrlbus_req_kind_t to, size_t len)
+{
+    switch (to) {
+    case CTRLBUS_REQ_CONNECT_BASE: return len == 28u || len == 39u;
+    case CTRLBUS_REQ_GET_BASE_CONF: return len == 264u;
+    case CTRLBUS_REQ_GET_BASE_CONF_ADV: return true;
+    case CTRLBUS_REQ_GET_BASE_STATUS: return len == 2u;
+    case CTRLBUS_REQ_GET_BASE_MOTOR_DATA: return len == 9u;
+    case CTRLBUS_REQ_GET_BASE_SENSOR_DATA: return len == 64u;
+    case CTRLBUS_REQ_GET_BASE_BUMPER_DATA: return len >= 1u && len <= 4u;
+    case CTRLBUS_REQ_GET_CHARGER_DATA: return len == 2u + 3u;
+    case CTRLBUS_REQ_SET_V_AND_GET_DEADRECKON: return len == 13u || len == 17u;
+    case CTRLBUS_REQ_POLL_BASE_CMD: return len == 0u || len == 2u;
+    case CTRLBUS_REQ_HEALTH_GET_HEALTH: return len == 2u;
+    case CTRLBUS_REQ_HEALTH_GET_ERROR: return len == 36u;
+    default: return len == 0u; /* the empty OK answers */
+    }
+}
 
 static const answer_fields_t ANSWER_FIELDS[] = {
     {CTRLBUS_REQ_CONNECT_BASE, CONNECT_BASE_FIELDS, sizeof CONNECT_BASE_FIELDS / sizeof CONNECT_BASE_FIELDS[0]},
