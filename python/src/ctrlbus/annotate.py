@@ -38,7 +38,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from ctrlbus import binconf
+from ctrlbus import binconf, protocol_tables
 from ctrlbus.capture import Direction
 from ctrlbus.compat import StrEnum
 from ctrlbus.constants import LINE_FAULT_LIMIT
@@ -742,9 +742,10 @@ def _bits_text(value: int, bits: Mapping[int, str], none: str) -> str:
     return f"0x{value:02X} ({', '.join(set_bits) if set_bits else none})"
 
 
-_HEALTH_BITS = {0x01: "warning", 0x02: "error", 0x04: "fatal"}
-_HEALTH_LEVELS = {1: "warning", 2: "error", 4: "fatal"}
-_HEALTH_COMPONENTS = {0: "user", 1: "system", 2: "power", 3: "motion", 4: "sensor"}
+# Bit meanings and code names from the protocol description (protocol/ctrlbus.json).
+_HEALTH_BITS = protocol_tables.HEALTH_FLAGS_BITS
+_HEALTH_LEVELS = protocol_tables.HEALTH_LEVELS
+_HEALTH_COMPONENTS = protocol_tables.HEALTH_COMPONENTS
 _ERROR_MEANINGS = {
     ErrorCode.NOT_SYNCED: "channel not synchronised",
     ErrorCode.TOO_LONG: "request too long",
@@ -754,8 +755,8 @@ _ERROR_MEANINGS = {
     ErrorCode.FORMAT: "format error",
     ErrorCode.OPERATION: "operation failed",
 }
-_BASE_TYPES = {0: "round", 1: "square"}
-_MOTOR_TYPES = {0: "two-wheel differential"}
+_BASE_TYPES = protocol_tables.BASE_TYPES
+_MOTOR_TYPES = protocol_tables.MOTOR_TYPES
 
 
 def _health_code_text(code: int) -> str:
