@@ -359,9 +359,10 @@ class Message:
             for item in value:
                 _check_int(owner, name, item, limits)
             object.__setattr__(self, name, tuple(value))
+        tail = self._TAIL
         for name, limits in self._RANGES.items():
             value = getattr(self, name)
-            if value is not None or name != self._TAIL:
+            if tail is None or value is not None or name != tail:  # a tail not sent is None
                 _check_int(owner, name, value, limits)
         self._check()
 
@@ -400,6 +401,8 @@ class Message:
             return cls()
         else:
             _check_length(cls._label(), data, layout.size, what=cls._PART)
+        if not cls._ARRAYS:  # one value a field, in order; a tail not sent keeps its None
+            return cls(*layout.unpack(data))
         values = list(layout.unpack(data))
         arguments: list[Any] = []
         for item in dataclass_fields(cls):
@@ -409,7 +412,6 @@ class Message:
                 del values[:count]
             elif values:
                 arguments.append(values.pop(0))
-            # else: the optional tail of the shorter form, left at its default None
         return cls(*arguments)
 
 
