@@ -112,7 +112,8 @@ static int32_t take_answer(const ctrlbus_codec_decoding_t *how, void *out, const
     int32_t result = take_fields(how->layout, out, payload, len);
     uint8_t *bytes = (uint8_t *)out;
     if (how->length_at != NONE) {
-        bytes[how->length_at] = how->sizing == DECODE_UP_TO ? (uint8_t)len : len == how->long_size;
+        bool long_form = len == how->long_size;
+        bytes[how->length_at] = (uint8_t)(how->sizing == DECODE_UP_TO ? len : (size_t)long_form);
     }
     if (how->rest_at != NONE && payload != NULL) {
         *(const uint8_t **)(void *)(bytes + how->rest_at) = payload + how->short_size;
