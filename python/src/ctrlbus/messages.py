@@ -372,8 +372,8 @@ class Message:
     def _pack(self) -> bytes:
         """The message's own bytes (after the request code / sub-command for control-bus requests)."""
         layout = self._LAYOUT or (self._FORMS[1] if self._FORMS else None)
-        if layout is None:
-            return b""
+        if layout is None:  # no fields, or one bytes field: the whole payload
+            return bytes(getattr(self, self._BYTES[0])) if self._BYTES else b""
         values: list[Any] = []
         for item in dataclass_fields(self):
             value = getattr(self, item.name)
@@ -396,6 +396,8 @@ class Message:
             short, long = cls._FORMS
             _check_length(cls._label(), data, short.size, long.size, what=cls._PART)
             layout = long if len(data) == long.size else short
+        elif layout is None and cls._BYTES:
+            return cls(**{cls._BYTES[0]: data})
         elif layout is None:
             _check_length(cls._label(), data, 0, what=cls._PART)
             return cls()
@@ -453,13 +455,6 @@ class Sync(RequestMessage):
 
     filler: bytes = b""
 
-    def _pack(self) -> bytes:
-        return self.filler
-
-    @classmethod
-    def _unpack(cls, data: bytes) -> Self:
-        return cls(data)
-
 
 @dataclass(frozen=True)
 class Echo(RequestMessage):
@@ -470,13 +465,6 @@ class Echo(RequestMessage):
     _BYTES: ClassVar[tuple[str, ...]] = ("data",)
 
     data: bytes = b""
-
-    def _pack(self) -> bytes:
-        return self.data
-
-    @classmethod
-    def _unpack(cls, data: bytes) -> Self:
-        return cls(data)
 
 
 @dataclass(frozen=True)
@@ -697,13 +685,6 @@ class SyncAnswer(AnswerMessage):
 
     filler: bytes = b""
 
-    def _pack(self) -> bytes:
-        return self.filler
-
-    @classmethod
-    def _unpack(cls, data: bytes) -> Self:
-        return cls(data)
-
 
 @dataclass(frozen=True)
 class EchoAnswer(AnswerMessage):
@@ -714,13 +695,6 @@ class EchoAnswer(AnswerMessage):
     _BYTES: ClassVar[tuple[str, ...]] = ("data",)
 
     data: bytes = b""
-
-    def _pack(self) -> bytes:
-        return self.data
-
-    @classmethod
-    def _unpack(cls, data: bytes) -> Self:
-        return cls(data)
 
 
 @dataclass(frozen=True)
@@ -904,13 +878,6 @@ def _unpack_positions(data: bytes, at: int) -> tuple[Position, ...]:
 @dataclass(frozen=True)
 class GetBaseConfAdvAnswer(GetBaseConfAdvAnswerFields, OkAnswer):
     """The binary configuration, carried as opaque bytes here (its tree codec lives elsewhere)."""
-
-    def _pack(self) -> bytes:
-        return self.blob
-
-    @classmethod
-    def _unpack(cls, data: bytes) -> Self:
-        return cls(data)
 
 
 @dataclass(frozen=True)
