@@ -225,6 +225,24 @@ def c_count(f: Field) -> str:
     return f"CTRLBUS_{f.raw['count_name']}" if "count_name" in f.raw else f"{f.count}u"
 
 
+def c_comment_block(text: str) -> str:
+    """A C comment of at most 100 columns."""
+    wrapped = textwrap.wrap(text, 94)
+    return "\n".join(["/* " + wrapped[0]] + [" * " + rest for rest in wrapped[1:]]) + " */"
+
+
+def c_member(declaration: str, comment: str) -> str:
+    """`    declaration; /* comment */`, the comment above it when the line would pass 100 columns."""
+    line = f"    {declaration};{comment}"
+    if len(line) <= 100 or not comment:
+        return line
+    text = comment.strip()[3:-3].strip()
+    wrapped = textwrap.wrap(text, 92)
+    block = ["    /* " + wrapped[0]] + ["     * " + rest for rest in wrapped[1:]]
+    block[-1] += " */"
+    return "\n".join(block) + f"\n    {declaration};"
+
+
 def c_members(answer: Answer, desc: Description) -> Iterator[str]:
     for f in answer.fields:
         doc = c_comment(f, desc)
@@ -232,15 +250,15 @@ def c_members(answer: Answer, desc: Description) -> Iterator[str]:
             yield f"    bool has_{f.name}; /* false: the shorter form (the contract's null) */"
         if f.type == "text":
             extra = "" if f.raw.get("nul_in_field") else " + 1"
-            yield f"    char {f.name}[{c_count(f)}{extra}];{doc}"
+            yield c_member(f"char {f.name}[{c_count(f)}{extra}]", doc)
         elif f.type == "bytes":
-            yield f"    const uint8_t *{f.name};{doc}"
+            yield c_member(f"const uint8_t *{f.name}", doc)
             if "count_field" not in f.raw:
                 yield f"    size_t {f.name}_len;"
         else:
             ctype = f"ctrlbus_{f.type}_t" if f.struct_words else C_TYPES[f.type]
             array = f"[{c_count(f)}]" if f.is_array else ""
-            yield f"    {ctype} {f.name}{array};{doc}"
+            yield c_member(f"{ctype} {f.name}{array}", doc)
     if "size_field" in answer.raw:
         yield f"    uint8_t {answer.raw['size_field']}; /* bytes on the wire */"
 
@@ -250,7 +268,7 @@ def c_bits(desc: Description) -> str:
     for name, group in desc.raw["bits"].items():
         if "c_prefix" not in group:
             continue
-        lines.append(f"/* {group['of']} ([{group['anchor']}]). */")
+        lines.append(c_comment_block(f"{group['of']} ([{group['anchor']}])."))
         for bit in group["bits"]:
             lines.append(
                 f"#define CTRLBUS_{group['c_prefix']}_{bit['name']} 0x{1 << bit['bit']:02X}u /* {bit['meaning']} */"
@@ -273,7 +291,7 @@ def c_comment(f: Field, desc: Description | None = None) -> str:
 
 def c_position_struct(desc: Description, name: str) -> str:
     struct = desc.raw["structs"][name]
-    lines = [f"/* {struct['doc'][0].upper()}{struct['doc'][1:]}. */", "typedef struct {"]
+    lines = [c_comment_block(f"{struct['doc'][0].upper()}{struct['doc'][1:]}."), "typedef struct {"]
     for member in struct["fields"]:
         lines.append(f"    {C_TYPES[member['type']]} {member['name']};")
     lines.append(f"}} ctrlbus_{name}_t;")
@@ -338,7 +356,8 @@ def c_size_macros(desc: Description) -> str:
                 lines.append(f"/* The form a {c_struct(message)} asks for (its has_{tail.name}). */")
                 lines.append(
                     f"#define {prefix}_SIZE_OF(answer) \\\n"
-                    f"    ((answer)->has_{tail.name} ? {prefix}_SIZE_{tail.raw['form_name']} : {prefix}_SIZE)"
+                    f"    ((answer)->has_{tail.name} ? {prefix}_SIZE_{tail.raw['form_name']} \\\n"
+                    f"                                 : {prefix}_SIZE)"
                 )
         elif "min_size" in answer.raw:
             lines.append(
@@ -346,7 +365,7 @@ def c_size_macros(desc: Description) -> str:
             )
         else:
             lines.append(f"#define {prefix}_SIZE {answer.full_size}u")
-            lines.append(f"#define {prefix}_SIZE_OF(answer) {prefix}_SIZE /* one form */")
+            lines.append(f"#define {prefix}_SIZE_OF(answer) {prefix}_SIZE")
     return "\n".join(lines) + "\n"
 
 
@@ -436,7 +455,8 @@ def c_encoders(desc: Description) -> str:
             size = f"a != NULL ? (int32_t)CTRLBUS_{m.name}_ANSWER_SIZE_OF(a) : CTRLBUS_ERR_ARGUMENT"
         else:
             size = f"fixed_size(a, CTRLBUS_{m.name}_ANSWER_SIZE)"
-        lines.append(f"ANSWER_ENCODERS({m.lower}, {size})")
+        line = f"ANSWER_ENCODERS({m.lower}, {size})"
+        lines.append(line if len(line) <= 100 else f"ANSWER_ENCODERS({m.lower},\n                {size})")
     return "\n".join(lines) + "\n"
 
 
@@ -482,10 +502,20 @@ def c_decoding(message: Message) -> tuple[str, str]:
     if len(limits) > 2 or len({most for _, most in limits}) > 1:
         raise DescriptionError(f"{message.name}: at most two checked limits, of one value")
     limits += [("NONE", "0u")] * (2 - len(limits))
-    row = (
-        f"    [DECODING_{message.name}] = {{ctrlbus_codec_{message.lower}_layout, sizeof({struct}), {short}, {long},\n"
-        f"        {sizing}, {length_at}, {rest_at}, {limits[0][1]}, {{{limits[0][0]}, {limits[1][0]}}}}},"
-    )
+    members = [
+        f".layout = ctrlbus_codec_{message.lower}_layout",
+        f".out_size = sizeof({struct})",
+        f".short_size = {short}",
+        f".long_size = {long}",
+        f".sizing = {sizing}",
+        f".length_at = {length_at}",
+        f".rest_at = {rest_at}",
+        f".limit_max = {limits[0][1]}",
+        f".limit_at = {{{limits[0][0]},\n{' ' * 25}{limits[1][0]}}}"
+        if len(limits[0][0]) + len(limits[1][0]) > 60
+        else f".limit_at = {{{limits[0][0]}, {limits[1][0]}}}",
+    ]
+    row = f"    [DECODING_{message.name}] =\n        {{\n" + "".join(f"            {m},\n" for m in members) + "        },"
     offsets = [o for o in (length_at, rest_at, limits[0][0], limits[1][0]) if o != "NONE"]
     return row, " &&\n             ".join([f"{o} < NONE" for o in offsets] + checks)
 

@@ -554,7 +554,8 @@ ANSWER_ENCODERS(get_base_motor_data, fixed_size(a, CTRLBUS_GET_BASE_MOTOR_DATA_A
 ANSWER_ENCODERS(get_base_sensor_data, fixed_size(a, CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE))
 ANSWER_ENCODERS(get_base_bumper_data, ctrlbus_get_base_bumper_data_answer_size(a))
 ANSWER_ENCODERS(get_charger_data, ctrlbus_get_charger_data_answer_size(a))
-ANSWER_ENCODERS(set_v_and_get_deadreckon, a != NULL ? (int32_t)CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_OF(a) : CTRLBUS_ERR_ARGUMENT)
+ANSWER_ENCODERS(set_v_and_get_deadreckon,
+                a != NULL ? (int32_t)CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_OF(a) : CTRLBUS_ERR_ARGUMENT)
 ANSWER_ENCODERS(health_get_health, fixed_size(a, CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE))
 ANSWER_ENCODERS(health_get_error, ctrlbus_health_get_error_answer_size(a))
 /* END GENERATED encoders */

@@ -111,7 +111,8 @@ extern "C" {
 /* status of GET_BASE_MOTOR_DATA and SET_V_AND_GET_DEADRECKON ([motor-data]). */
 #define CTRLBUS_MOTOR_STALL 0x02u /* wheel stall */
 #define CTRLBUS_MOTOR_TRACTION_LOST 0x04u /* traction lost */
-/* HEALTH_GET_HEALTH flags, and the level byte (bits 31..24) of a health error code ([health-list]). */
+/* HEALTH_GET_HEALTH flags, and the level byte (bits 31..24) of a health error code ([health-
+ * list]). */
 #define CTRLBUS_HEALTH_WARNING 0x01u /* warning */
 #define CTRLBUS_HEALTH_ERROR 0x02u /* error */
 #define CTRLBUS_HEALTH_FATAL 0x04u /* fatal */
@@ -148,25 +149,26 @@ extern "C" {
 #define CTRLBUS_CONNECT_BASE_ANSWER_SIZE 28u /* without firmware_version_suffix */
 #define CTRLBUS_CONNECT_BASE_ANSWER_SIZE_WITH_SUFFIX 39u
 #define CTRLBUS_GET_BASE_CONF_ANSWER_SIZE 264u
-#define CTRLBUS_GET_BASE_CONF_ANSWER_SIZE_OF(answer) CTRLBUS_GET_BASE_CONF_ANSWER_SIZE /* one form */
+#define CTRLBUS_GET_BASE_CONF_ANSWER_SIZE_OF(answer) CTRLBUS_GET_BASE_CONF_ANSWER_SIZE
 #define CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE 2u
-#define CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE_OF(answer) CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE /* one form */
+#define CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE_OF(answer) CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE
 #define CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE 9u
-#define CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE_OF(answer) CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE /* one form */
+#define CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE_OF(answer) CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE
 #define CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE 64u
-#define CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE_OF(answer) CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE /* one form */
+#define CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE_OF(answer) CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE
 #define CTRLBUS_GET_BASE_BUMPER_DATA_ANSWER_SIZE 4u /* 1..4 accepted */
 #define CTRLBUS_GET_CHARGER_DATA_ANSWER_MIN 2u /* + probe_count */
 #define CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE 13u /* without timestamp_ms */
 #define CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_WITH_TIMESTAMP 17u
 /* The form a ctrlbus_set_v_and_get_deadreckon_answer_t asks for (its has_timestamp_ms). */
 #define CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_OF(answer) \
-    ((answer)->has_timestamp_ms ? CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_WITH_TIMESTAMP : CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE)
+    ((answer)->has_timestamp_ms ? CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_WITH_TIMESTAMP \
+                                 : CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE)
 #define CTRLBUS_POLL_BASE_CMD_ANSWER_SIZE 2u /* or 0 */
 #define CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE 2u
-#define CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE_OF(answer) CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE /* one form */
+#define CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE_OF(answer) CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE
 #define CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE 36u
-#define CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE_OF(answer) CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE /* one form */
+#define CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE_OF(answer) CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE
 /* END GENERATED sizes */
 #define CTRLBUS_ERROR_ANSWER_SIZE 2u
 
@@ -326,10 +328,12 @@ typedef struct {
     uint16_t hardware_version;
     uint32_t serial[CTRLBUS_SERIAL_WORDS]; /* the reference sends the MCU's 96-bit unique id */
     bool has_firmware_version_suffix; /* false: the shorter form (the contract's null) */
-    char firmware_version_suffix[CTRLBUS_FIRMWARE_VERSION_SUFFIX_LEN + 1]; /* 39-byte form only; `null` in the 28-byte form */
+    /* 39-byte form only; `null` in the 28-byte form */
+    char firmware_version_suffix[CTRLBUS_FIRMWARE_VERSION_SUFFIX_LEN + 1];
 } ctrlbus_connect_base_answer_t;
 
-/* Where a sensor or bumper sits, relative to the robot centre, x forward, y left, z up (right-handed). */
+/* Where a sensor or bumper sits, relative to the robot centre, x forward, y left, z up (right-
+ * handed). */
 typedef struct {
     int32_t x_mm_q8;
     int32_t y_mm_q8;
@@ -369,7 +373,8 @@ typedef struct {
 
 /* GET_BASE_SENSOR_DATA (docs/protocol.md [sensor-data]) */
 typedef struct {
-    uint32_t distances_mm_q16[CTRLBUS_SENSOR_CHANNELS]; /* mm, Q16; one per sensor slot of the configuration */
+    /* mm, Q16; one per sensor slot of the configuration */
+    uint32_t distances_mm_q16[CTRLBUS_SENSOR_CHANNELS];
 } ctrlbus_get_base_sensor_data_answer_t;
 
 /* GET_BASE_BUMPER_DATA (docs/protocol.md [bumper-data]) */
@@ -382,7 +387,8 @@ typedef struct {
 typedef struct {
     uint8_t beacon_count; /* 3 */
     uint8_t probe_count; /* 3 */
-    const uint8_t *probes; /* in the order left, main, right; each a bitmap of the dock beacons the probe sees */
+    /* in the order left, main, right; each a bitmap of the dock beacons the probe sees */
+    const uint8_t *probes;
 } ctrlbus_get_charger_data_answer_t;
 
 /* SET_V_AND_GET_DEADRECKON (docs/protocol.md [set-v]) */
@@ -392,7 +398,8 @@ typedef struct {
     int32_t dtheta_deg_q16; /* degrees, Q16; anticlockwise positive */
     uint8_t status; /* CTRLBUS_MOTOR_* bits; same bits as GET_BASE_MOTOR_DATA */
     bool has_timestamp_ms; /* false: the shorter form (the contract's null) */
-    uint32_t timestamp_ms; /* ms; since the base powered up (17-byte form only; `null` in the 13-byte form) */
+    /* ms; since the base powered up (17-byte form only; `null` in the 13-byte form) */
+    uint32_t timestamp_ms;
 } ctrlbus_set_v_and_get_deadreckon_answer_t;
 
 /* HEALTH_GET_HEALTH (docs/protocol.md [health]) */
