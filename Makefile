@@ -1,14 +1,20 @@
 # SPDX-License-Identifier: MIT
-# ctrlbus: every job starts with `setup`, which installs what a fresh Debian machine lacks.
+# ctrlbus: the jobs that need the dev tools start with `setup`, which installs what a fresh Debian
+# machine lacks. The C build (`c-build`, `c-test`) needs only a C compiler, CMake and make, and
+# `arduino` only python3: neither runs the set-up.
 SHELL := /bin/bash
 VENV  := .venv
 VENV310 := .venv310
-PY    := $(VENV)/bin/python
+# The venv's Python once `setup` made it; before that the system's (the scripts that `arduino`
+# and `release-tag` run use nothing but the standard library).
+PY    := $(if $(wildcard $(VENV)/bin/python),$(VENV)/bin/python,python3)
+# Ninja when it is installed (setup installs it), else CMake's default generator (make).
+CMAKE_GENERATOR ?= $(if $(shell command -v ninja),Ninja,Unix Makefiles)
 BUILD := build
 JOBS  ?= 2
 DEMO_ARGS ?=
 
-.PHONY: all setup generate c-build c-build-only firmware firmware-only ports c-test c-test-config-off c-test-asan lint py-test test demo size bench fuzz fuzz-smoke clean
+.PHONY: all setup generate c-build c-build-only firmware firmware-only ports ports-only c-test c-test-config-off c-test-asan lint py-test test demo size bench fuzz fuzz-smoke clean
 
 all: test
 
@@ -24,39 +30,38 @@ generate:
 	@python3 scripts/generate_protocol.py
 
 # Host build of the C library, tests and examples (warnings are errors). A Debug build, for our
-# tests: firmware links a Release one (docs/c-library.md).
-c-build: setup
-	@$(MAKE) --no-print-directory c-build-only
+# tests: firmware links a Release one (docs/c-library.md). Needs a C compiler, CMake and make
+# (python3 too for the tests, which are left out without it); no set-up
+# (python/tests/test_c_build_alone.py runs it with nothing else on the PATH).
+c-build: c-build-only
 c-build-only:
-	@cmake -S c -B $(BUILD)/c -G Ninja -DCMAKE_BUILD_TYPE=Debug >/dev/null
+	@cmake -S c -B $(BUILD)/c -G "$(CMAKE_GENERATOR)" -DCMAKE_BUILD_TYPE=Debug >/dev/null
 	@cmake --build $(BUILD)/c -j $(JOBS)
 
-# Cortex-M3 firmware for QEMU's mps2-an385 board (arm-none-eabi-gcc).
-firmware: setup
-	@$(MAKE) --no-print-directory firmware-only
-firmware-only:
-	@$(MAKE) --no-print-directory -C c/firmware O=$(CURDIR)/$(BUILD)/firmware
-
-# The minimal base on the emulated MCUs of c/ports/ (ATmega328P, nRF51, STM32F405, FE310) and
-# its Cortex-M0+ build; `make -C c/ports sizes` prints their flash and RAM.
-ports: setup
+# Every firmware image of c/ports/ (c/ports/README.md): the minimal base on the emulated MCUs
+# (ATmega328P, nRF51, STM32F405, FE310, and its Cortex-M0+ build), the simulated base on the
+# 32-bit boards, and QEMU's mps2-an385 (Cortex-M3) with its UART bring-up probe and its sdk2020
+# image. `make -C c/ports sizes` prints their flash and RAM. `firmware` is the same job.
+ports firmware: setup
+	@$(MAKE) --no-print-directory ports-only
+ports-only firmware-only:
 	@$(MAKE) --no-print-directory -C c/ports O=$(CURDIR)/$(BUILD)/ports
 
 c-test: c-build
-	@ctest --test-dir $(BUILD)/c --output-on-failure -j $(JOBS)
+	@cd $(BUILD)/c && ctest --output-on-failure -j $(JOBS)
 
 # The C tests again with every feature switch of ctrlbus_config.h off (c/tests/config_all_off.h).
 c-test-config-off: setup
 	@cmake -S c -B $(BUILD)/c-config-off -G Ninja -DCMAKE_BUILD_TYPE=Debug \
 	  -DCTRLBUS_CONFIG_HEADER=$(CURDIR)/c/tests/config_all_off.h >/dev/null
 	@cmake --build $(BUILD)/c-config-off -j $(JOBS)
-	@ctest --test-dir $(BUILD)/c-config-off --output-on-failure -j $(JOBS)
+	@cd $(BUILD)/c-config-off && ctest --output-on-failure -j $(JOBS)
 
 # The same tests under AddressSanitizer + UndefinedBehaviorSanitizer.
 c-test-asan: setup
 	@cmake -S c -B $(BUILD)/c-asan -G Ninja -DCMAKE_BUILD_TYPE=Debug -DCTRLBUS_SANITIZE=ON >/dev/null
 	@cmake --build $(BUILD)/c-asan -j $(JOBS)
-	@ctest --test-dir $(BUILD)/c-asan --output-on-failure -j $(JOBS)
+	@cd $(BUILD)/c-asan && ctest --output-on-failure -j $(JOBS)
 
 lint: setup
 	@cd python && ../$(VENV)/bin/ruff check src tests && ../$(VENV)/bin/ruff format --check src tests
@@ -68,7 +73,7 @@ lint: setup
 # suite runs twice: on the default interpreter and on Python 3.10, the oldest supported
 # (PY310_PYTEST_ARGS='-m "not browser"', for instance, trims the second run).
 PY310_PYTEST_ARGS ?=
-py-test: c-build firmware ports
+py-test: setup c-build ports
 	@cd python && ../$(VENV)/bin/pytest -q
 	@echo "py-test: again on $$($(VENV310)/bin/python --version)"
 	@cd python && ../$(VENV310)/bin/pytest -q -p no:cacheprovider $(PY310_PYTEST_ARGS)
@@ -98,7 +103,7 @@ demo:
 	@case "$(DEMO_BASE)" in \
 	  ""|sim) scripts/setup.sh demo ;; \
 	  c) scripts/setup.sh c && $(MAKE) --no-print-directory c-build-only ;; \
-	  qemu) scripts/setup.sh qemu && $(MAKE) --no-print-directory firmware-only ;; \
+	  qemu) scripts/setup.sh qemu && $(MAKE) --no-print-directory -C c/ports O=$(CURDIR)/$(BUILD)/ports mps2_an385 ;; \
 	  *) scripts/setup.sh demo ;; \
 	esac
 	@$(PY) -m ctrlbus demo $(DEMO_ARGS)
@@ -125,7 +130,7 @@ fuzz: setup
 fuzz-smoke: setup
 	@scripts/fuzz.sh 30
 
-.PHONY: consumers arduino release
+.PHONY: consumers arduino release release-tag
 
 # The C library as other projects consume it: CMake add_subdirectory, FetchContent, find_package,
 # pkg-config, and a Cortex-M0+ cross build (python/tests/test_c_consumers.py, also run by py-test).
@@ -136,7 +141,7 @@ consumers: setup
 # and sdist, and a source tarball of what is committed at HEAD (git archive). The version is the
 # one in c/include/ctrlbus/ctrlbus.h; python/tests/test_release.py checks every artefact.
 DIST ?= dist
-arduino: setup
+arduino:
 	@$(PY) scripts/arduino_zip.py $(DIST)
 
 release: setup
@@ -152,3 +157,10 @@ release: setup
 
 clean:
 	rm -rf $(BUILD)
+
+# The last step of a release (docs/c-library.md, "Releases"): the annotated tag v<version> on
+# HEAD, the tag the README's FetchContent recipe names. Refuses a tree with uncommitted changes.
+release-tag:
+	@git diff --quiet HEAD || { echo "release-tag: commit your changes first" >&2; exit 2; }
+	@version=$$($(PY) scripts/ctrlbus_version.py) && git tag -a "v$$version" -m "ctrlbus $$version" && \
+	  echo "tagged v$$version: git push origin v$$version"

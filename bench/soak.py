@@ -518,7 +518,7 @@ def run_quirks(spec_text: str, exchanges: int, seed: int = SEED) -> dict[str, An
         "disconnects": link["disconnects"],
         "errors_by_code": link["errors_by_code"],
         "line_faults_by_bit": link["line_faults_by_bit"],
-        "base_dropped_behind_reports": None if receiver is None else receiver.dropped_frames,
+        "base_frames_never_run": None if receiver is None else receiver.dropped_frames,
         "base_error_reports": None if receiver is None else receiver.reports,
         "faults_to_base": to_base_model.counters.as_dict(),
         "faults_to_core": to_core_model.counters.as_dict(),

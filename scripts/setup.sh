@@ -21,7 +21,7 @@ APT_GROUP[fuzz]="clang libclang-rt-14-dev"                              # libFuz
 APT_GROUP[bench]="valgrind"                                             # callgrind benchmarks
 APT_GROUP[tshark]="tshark"                                              # Wireshark dissector test
 APT_GROUP[browser]="chromium"                                           # dashboard browser test
-APT_GROUP[tools]="socat"                                                # link tests
+APT_GROUP[tools]="socat zsh"                                            # link tests; zsh completion test
 APT_GROUP[ports]="qemu-system-misc gcc-avr avr-libc binutils-avr gcc-riscv64-unknown-elf picolibc-riscv64-unknown-elf libsimavr-dev libelf-dev pkg-config"  # c/ports: ATmega328P (QEMU, and simavr for the chip image), RV32 (and make size)
 APT_GROUP[sigrok]="sigrok-cli"                                          # sigrok decoder test (tools/sigrok)
 APT_GROUP[pictures]="graphviz mscgen fonts-dejavu-core"                 # make pictures (docs/diagrams)
@@ -53,7 +53,7 @@ fi
 # (python/pyproject.toml [dependency-groups]; pip >= 25.1 reads them).
 # install_venv VENV PYTHON STAMP-NAME PIP-ARGS...
 install_venv() {
-  local venv=$1 py=$2 stamp=$1/.ctrlbus-$3 kind=$3
+  local venv=$1 py=$2 stamp=$1/.ctrlbus-$3 kind=$3 extras=web
   shift 3
   if [ ! -x "$venv/bin/python" ]; then
     echo "setup: creating $venv ($("$py" --version 2>&1))"
@@ -70,7 +70,8 @@ install_venv() {
     || [ scripts/requirements-packaging.txt -nt "$stamp" ] || [ "$(cat "$stamp")" != "$version" ]; then
     echo "setup: installing the ctrlbus Python package ($kind) into $venv"
     "$venv/bin/python" -m pip install -q --upgrade pip
-    "$venv/bin/python" -m pip install -q -e "python[web]" "$@"
+    [ "$kind" = full ] && extras=web,ros2  # the ROS 2 bridge's tests (docs/ros2.md)
+    "$venv/bin/python" -m pip install -q -e "python[$extras]" "$@"
     echo "$version" > "$stamp"
   fi
 }

@@ -26,6 +26,10 @@ void port_uart_write(const uint8_t *data, size_t size);
  * tick, whichever comes first. */
 void port_idle(void);
 
+/* Optional: resets the chip (does not return). A port that has it defines PORT_HAS_RESET (its
+ * Makefile flags); simbase_main.c then serves BASE_CMD REBOOT with it. */
+void port_reset(void);
+
 /* Implemented by the application: one received byte, called from the UART receive interrupt (or
  * from port_idle() on a port that polls its UART). */
 void port_uart_received(uint8_t byte);

@@ -9,8 +9,10 @@
 #include "port.h"
 
 /* CONNECT_BASE hardware_version: tells the hosts of the simulated base apart (posix_base 1, the
- * mps2-an385 firmware 2). */
-#define PORTS_HARDWARE_VERSION 3u
+ * mps2-an385 image 2, the other boards 3; the Makefile passes the board's). */
+#ifndef SIMBASE_HARDWARE_VERSION
+#define SIMBASE_HARDWARE_VERSION 3u
+#endif
 /* QEMU feeds the UART in host-scheduled bursts: a host program's inter-byte timeout. */
 #define QEMU_FRAME_TIMEOUT_MS 100u
 
@@ -28,12 +30,23 @@ void port_uart_received(uint8_t byte)
     base_glue_feed(&glue, &byte, 1);
 }
 
+#ifdef PORT_HAS_RESET
+static void reboot(void *context)
+{
+    (void)context;
+    port_reset();
+}
+#endif
+
 int main(void)
 {
     base_glue_options_t options = {0};
-    options.hardware_version = PORTS_HARDWARE_VERSION;
+    options.hardware_version = SIMBASE_HARDWARE_VERSION;
     options.frame_timeout_ms = QEMU_FRAME_TIMEOUT_MS;
     options.write = uart_write;
+#ifdef PORT_HAS_RESET
+    options.reboot = reboot;
+#endif
     if (base_glue_init(&glue, &options, 0) != 0) {
         return 1;
     }

@@ -8,6 +8,32 @@
 
 #include "codec.h"
 
+/* CTRLBUS_CONST_IN_FLASH: base_conf and binary_config are read through CTRLBUS_READ_CONST
+ * (ctrlbus_config.h), in wire order straight from memory, as the codec does on a little-endian
+ * CPU. */
+#if CTRLBUS_CONST_IN_FLASH
+#if !defined(CTRLBUS_READ_CONST) && defined(__AVR__)
+#define CTRLBUS_READ_CONST(dst, src, size) memcpy_P((dst), (src), (size))
+#define READ_CONST_BYTE(address) pgm_read_byte(address) /* the same, inline */
+#endif
+#ifndef CTRLBUS_READ_CONST
+#define CTRLBUS_READ_CONST(dst, src, size) memcpy((dst), (src), (size))
+#endif
+#ifndef READ_CONST_BYTE
+static uint8_t read_const_byte(const uint8_t *address)
+{
+    uint8_t byte;
+    CTRLBUS_READ_CONST(&byte, address, 1u);
+    return byte;
+}
+#define READ_CONST_BYTE(address) read_const_byte(address)
+#endif
+#if !(defined(__BYTE_ORDER__) && defined(__ORDER_LITTLE_ENDIAN__) &&                              \
+      __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__)
+#error "CTRLBUS_CONST_IN_FLASH needs a little-endian CPU"
+#endif
+#endif
+
 /* Keeps a function out of line (GCC, clang): its frame is then on the stack only
  * while it runs (answer(): not while the decoder works), or its code is there once. */
 #if defined(__GNUC__)
@@ -572,7 +598,46 @@ typedef struct {
     const void *source;
     ctrlbus_codec_layout_t layout;
     int32_t size; /* negative: a check refused the handler's struct (0x8002) */
+#if CTRLBUS_CONST_IN_FLASH
+    bool in_flash; /* source is the application's constant, read through CTRLBUS_READ_CONST */
+#endif
 } reply_t;
+
+#if CTRLBUS_CONST_IN_FLASH
+/* ctrlbus_get_base_conf_answer_size() for an answer in program memory: its two counts read. */
+static int32_t base_conf_size_in_flash(const ctrlbus_get_base_conf_answer_t *conf)
+{
+    uint8_t sensor_num = READ_CONST_BYTE(&conf->sensor_num);
+    uint8_t bumper_num = READ_CONST_BYTE(&conf->bumper_num);
+    return sensor_num > CTRLBUS_CONF_SLOTS || bumper_num > CTRLBUS_CONF_SLOTS
+               ? CTRLBUS_ERR_ARGUMENT
+               : (int32_t)CTRLBUS_GET_BASE_CONF_ANSWER_SIZE;
+}
+
+/* ctrlbus_codec_put_fields() for a source in program memory: each run of integer fields of
+ * `layout` (NULL: `size` bytes as they are), read a byte at a time. Integer fields only: the
+ * GET_BASE_CONF answer has no text. */
+static NOINLINE void put_const_fields(ctrlbus_sink_t *sink, ctrlbus_codec_layout_t layout,
+                                      const void *source, size_t size)
+{
+    const uint8_t *at = source;
+    size_t run = size;
+    while (size > 0u) {
+        if (layout != NULL) {
+            uint8_t shape = CODEC_ROM_BYTE(&layout->shape);
+            at = (const uint8_t *)source + CODEC_ROM_BYTE(&layout->offset);
+            run = (size_t)(shape >> 2) << (shape & 3u);
+            layout++;
+        }
+        run = run < size ? run : size;
+        size -= run;
+        for (; run > 0u; run--, at++) {
+            uint8_t byte = READ_CONST_BYTE(at);
+            ctrlbus_sink_emit(sink, &byte, 1u);
+        }
+    }
+}
+#endif
 
 /* Checks a request frame in the order of docs/protocol.md §8.2 (its row of the request table
  * gives the expected length), then runs it: one case per request, each checking its argument
@@ -635,7 +700,12 @@ static NOINLINE uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t
         if (config->base_conf != NULL) {
             result = CTRLBUS_OK; /* streamed from the application's struct: no copy */
             reply->source = config->base_conf;
+#if CTRLBUS_CONST_IN_FLASH
+            reply->in_flash = true;
+            size = base_conf_size_in_flash(config->base_conf);
+#else
             size = ctrlbus_get_base_conf_answer_size(config->base_conf);
+#endif
             layout = ctrlbus_codec_get_base_conf_layout;
         }
         break;
@@ -644,6 +714,9 @@ static NOINLINE uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t
         if (config->binary_config != NULL && config->binary_config_size != 0u) {
             result = CTRLBUS_OK;
             reply->source = config->binary_config;
+#if CTRLBUS_CONST_IN_FLASH
+            reply->in_flash = true;
+#endif
             size = (int32_t)config->binary_config_size; /* init checked it */
         }
         break;
@@ -768,7 +841,14 @@ static NOINLINE void send(const ctrlbus_base_config_t *config, uint8_t cmd, bool
     sink.context = config->write_context;
     size_t size = (size_t)reply->size;
     ctrlbus_sink_start(&sink, cmd, size, is_long || size > CTRLBUS_STANDARD_PAYLOAD_MAX);
-    ctrlbus_codec_put_fields(&sink, reply->layout, reply->source, size);
+#if CTRLBUS_CONST_IN_FLASH
+    if (reply->in_flash) {
+        put_const_fields(&sink, reply->layout, reply->source, size);
+    } else
+#endif
+    {
+        ctrlbus_codec_put_fields(&sink, reply->layout, reply->source, size);
+    }
     (void)ctrlbus_sink_finish(&sink);
 }
 
@@ -781,6 +861,9 @@ static NOINLINE void answer(ctrlbus_base_t *base, ctrlbus_rx_t rx, const ctrlbus
     reply_t reply;
     reply.source = &reply.out;
     reply.layout = NULL; /* run_request sets it (and size) only when it returns 0 */
+#if CTRLBUS_CONST_IN_FLASH
+    reply.in_flash = false;
+#endif
     uint8_t cmd = CTRLBUS_CMD_OK;
     uint16_t error = 0;
     if (rx != CTRLBUS_RX_FRAME) {
@@ -805,6 +888,9 @@ static NOINLINE void answer(ctrlbus_base_t *base, ctrlbus_rx_t rx, const ctrlbus
         reply.out.bytes[1] = (uint8_t)(error >> 8);
         reply.source = reply.out.bytes;
         reply.size = CTRLBUS_ERROR_ANSWER_SIZE;
+#if CTRLBUS_CONST_IN_FLASH
+        reply.in_flash = false; /* a refused base_conf */
+#endif
     }
     const ctrlbus_base_config_t *config = base->config;
     /* A copy keeps the request's flag; OK and ERROR are long unless standard_answers. */

@@ -14,6 +14,9 @@ new test in those modules is marked without anyone remembering to.
 
 from __future__ import annotations
 
+import importlib.util
+from pathlib import Path
+
 import pytest
 from hypothesis import HealthCheck, settings
 
@@ -37,6 +40,7 @@ EXTERNAL_MARKERS = {
     "bench": "the benchmark tools (make bench: the bench dependency group, valgrind, the C build)",
     "packaging": "PyPI (the floor setuptools is installed in a venv of its own) and twine",
     "setup": "scripts/setup.sh run in a scratch copy of the repository (a venv of its own)",
+    "ros2": "the ros2 extra (cyclonedds, rosbags) and mcap-ros2-support (scripts/setup.sh full)",
 }
 
 MODULE_MARKERS = {
@@ -50,17 +54,46 @@ MODULE_MARKERS = {
     "test_release": ("packaging", "c_build"),
     "test_manifests": ("packaging", "c_build"),
     "test_c_consumers": ("c_build",),
+    "test_c_build_alone": ("c_build",),
     "test_minimal_base": ("c_build",),
     "test_mcu_ports": ("qemu",),
     "test_served_bases": ("qemu", "c_build"),
     "test_hostile_link": ("qemu", "c_build"),
     "test_sigrok": ("sigrok",),
     "test_setup": ("setup",),
+    "test_ros2_bridge": ("ros2",),
+    "test_ros2_record": ("ros2",),
+    "test_ros2_loopback": ("ros2",),
+    "test_ros2_cli": ("ros2",),
+    "test_ros2_messages": ("ros2",),
 }
 
 FIXTURE_MARKERS = {
     "posix_base": ("c_build",),
 }
+
+
+# Modules that import a marker's tools at the top, so that they cannot even be collected without
+# them: skipped at collection when the tools are missing and the run deselects their marker.
+IMPORTS_AT_THE_TOP = {"ros2": ("cyclonedds", "rosbags", "mcap_ros2")}
+
+
+def pytest_ignore_collect(collection_path: Path, config: pytest.Config) -> bool | None:
+    markers = MODULE_MARKERS.get(collection_path.stem, ())
+    expression = config.getoption("markexpr") or ""
+    for marker in markers:
+        modules = IMPORTS_AT_THE_TOP.get(marker, ())
+        deselected = "not external" in expression or f"not {marker}" in expression
+        if deselected and any(_missing(name) for name in modules):
+            return True
+    return None
+
+
+def _missing(module: str) -> bool:
+    try:
+        return importlib.util.find_spec(module) is None
+    except ValueError:  # a module set to None in sys.modules (hidden on purpose)
+        return True
 
 
 def pytest_configure(config: pytest.Config) -> None:

@@ -23,10 +23,10 @@ from pathlib import Path
 
 import pytest
 from base_harness import REPO, FramePeer, Process, connect_tcp, connect_unix
-from test_firmware import FIRMWARE_BUILD, FIRMWARE_SOURCES, qemu_command
+from test_firmware import FIRMWARE_BASE, build_firmware_command, qemu_command
 
 POSIX_BASE = REPO / "build" / "c" / "examples" / "posix_base" / "posix_base"
-FIRMWARE_IMAGE = FIRMWARE_BUILD / "ctrlbus-base.elf"
+FIRMWARE_IMAGE = FIRMWARE_BASE
 SIM = [sys.executable, "-m", "ctrlbus", "sim"]
 
 BASE_NAMES = ("posix_base", "ctrlbus-sim", "firmware")
@@ -73,8 +73,7 @@ def build_firmware() -> None:
     for tool in ("arm-none-eabi-gcc", "qemu-system-arm"):
         if shutil.which(tool) is None:
             pytest.fail(f"{tool} is missing: scripts/setup.sh installs it")
-    command = ["make", "-C", str(FIRMWARE_SOURCES), f"O={FIRMWARE_BUILD}"]
-    build = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    build = subprocess.run(build_firmware_command(), capture_output=True, text=True, timeout=600)
     if build.returncode != 0 or not FIRMWARE_IMAGE.exists():
         pytest.fail(f"firmware build failed:\n{build.stdout}\n{build.stderr}")
 

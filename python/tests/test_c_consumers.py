@@ -158,3 +158,102 @@ def test_cortex_m0plus_consumer_links(tmp_path: Path) -> None:
     assert "Machine:                           ARM" in header and "Tag_CPU_arch: v6S-M" in header, header
     sizes = run(tool("arm-none-eabi-size"), tmp_path / "consumer").splitlines()[1].split()
     assert int(sizes[0]) > 0, sizes
+
+
+# --- as a firmware team meets it (issue 28) ------------------------------------------------------
+
+
+def test_config_header_set_as_a_normal_variable_applies_on_the_first_configure(tmp_path: Path) -> None:
+    """set(CTRLBUS_CONFIG_HEADER ...) before add_subdirectory, one configure: the switch is off in
+    the library's objects (the consumer checks it at run time, and CTRLBUS_CONFIG_CHECK() links)."""
+    output = configure_and_build(
+        tmp_path, CONSUMER, f"-DCTRLBUS_CHECKOUT={REPO}", "-DCONSUMER_CONFIG_HEADER=ON", NO_PYTHON
+    )
+    run(tmp_path / "consumer")
+    assert f"ctrlbus: build-time switches from {CONSUMER / 'consumer_config.h'}" in output, output
+    assert "CTRLBUS_CONFIG_HEADER" not in (tmp_path / "CMakeCache.txt").read_text(), output
+    assert_consumer_only(tmp_path)
+
+
+def test_config_mismatch_between_library_and_firmware_fails_the_link(
+    tmp_path: Path, installed_prefix: Path
+) -> None:
+    """The library installed with the default switches; a firmware compiled with one off."""
+    result = subprocess.run(
+        [tool("cc"), "-std=c99", "-DCTRLBUS_CONFIG_HEALTH=0", f"-I{installed_prefix / 'include'}",
+         str(CONSUMER / "main.c"), "-o", str(tmp_path / "consumer"),
+         str(installed_prefix / "lib" / "libctrlbus.a")],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    expected = "undefined reference to `ctrlbus_config_h0_"
+    assert result.returncode != 0 and expected in result.stderr, result.stderr
+
+
+def readme_fetchcontent_recipe() -> str:
+    """The README's FetchContent block, as a user copies it."""
+    readme = (REPO / "README.md").read_text()
+    blocks = re.findall(r"```cmake\n(.*?)```", readme, re.S)
+    recipes = [block for block in blocks if "FetchContent_Declare(ctrlbus" in block]
+    assert len(recipes) == 1, blocks
+    return str(recipes[0])
+
+
+def test_readme_fetchcontent_recipe_as_written(tmp_path: Path) -> None:
+    """The README's text verbatim but for the repository's address: a clone of this checkout's
+    HEAD, tagged as the release procedure tags it (make release-tag). GIT_SHALLOW needs a tag."""
+    recipe = readme_fetchcontent_recipe()
+    assert re.search(rf"GIT_TAG +v{re.escape(header_version())}\n", recipe), recipe
+    assert re.search(r"GIT_SHALLOW +TRUE\n", recipe), recipe
+    published = "https://github.com/ctrlbus/ctrlbus.git"
+    assert recipe.count(published) == 1, recipe
+    clone = tmp_path / "ctrlbus.git"
+    run("git", "clone", "--quiet", f"file://{REPO}", clone)
+    env = {
+        **os.environ, "GIT_AUTHOR_NAME": "release", "GIT_AUTHOR_EMAIL": "release@example.invalid",
+        "GIT_COMMITTER_NAME": "release", "GIT_COMMITTER_EMAIL": "release@example.invalid",
+    }  # fmt: skip
+    run("make", "-C", clone, "release-tag", "PY=python3", env=env)
+    recipe_file = tmp_path / "recipe.cmake"
+    recipe_file.write_text(recipe.replace(published, f"file://{clone}"))
+    build = tmp_path / "build"
+    configure_and_build(
+        build, CONSUMER, "-DCONSUMER_GETS_CTRLBUS=fetchcontent",
+        f"-DCONSUMER_FETCHCONTENT_RECIPE={recipe_file}",
+        f"-DCONSUMER_EXPECT_VERSION={header_version()}", NO_PYTHON,
+    )  # fmt: skip
+    source = build / "_deps" / "ctrlbus-src"
+    assert run("git", "-C", source, "rev-list", "--count", "HEAD").strip() == "1", "not a shallow clone"
+    run(build / "consumer")
+    assert_consumer_only(build)
+
+
+def test_consumer_library_wrapping_ctrlbus_installs_and_exports(tmp_path: Path) -> None:
+    """A team's own library linking ctrlbus::ctrlbus, installed with install(EXPORT), then used by
+    another of their projects through find_package(acme)."""
+    prefix = tmp_path / "prefix"
+    configure_and_build(tmp_path / "acme", CONSUMER / "wrapper", f"-DCTRLBUS_CHECKOUT={REPO}", NO_PYTHON)
+    run(tool("cmake"), "--install", tmp_path / "acme", "--prefix", prefix)
+    assert (prefix / "lib" / "cmake" / "ctrlbus" / "ctrlbusConfig.cmake").exists()
+    configure_and_build(
+        tmp_path / "user", CONSUMER, "-DCONSUMER_GETS_CTRLBUS=acme", f"-DCMAKE_PREFIX_PATH={prefix}",
+        f"-DCONSUMER_EXPECT_VERSION={header_version()}", NO_PYTHON,
+    )  # fmt: skip
+    run(tmp_path / "user" / "consumer")
+
+
+@pytest.mark.parametrize("standard", ["c++11", "c++17"])
+def test_headers_compile_as_cxx_before_cxx20(tmp_path: Path, installed_prefix: Path, standard: str) -> None:
+    """Every public header from C++ (no designated initializers before C++20), linked and run."""
+    program = tmp_path / "cxx_consumer"
+    run(
+        tool("c++"), f"-std={standard}", "-Wall", "-Wextra", "-Wpedantic", "-Werror",
+        f"-I{installed_prefix / 'include'}", CONSUMER / "cxx_main.cpp", "-o", program,
+        installed_prefix / "lib" / "libctrlbus.a",
+    )  # fmt: skip
+    run(program)
+
+
+def test_vectors_dir_stays_out_of_a_consumers_cache(tmp_path: Path) -> None:
+    configure_and_build(tmp_path, CONSUMER, f"-DCTRLBUS_CHECKOUT={REPO}", NO_PYTHON)
+    cache = (tmp_path / "CMakeCache.txt").read_text()
+    assert "CTRLBUS_VECTORS_DIR" not in cache and "CTRLBUS_CONFIG_HEADER:FILEPATH=" in cache

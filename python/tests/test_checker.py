@@ -34,7 +34,6 @@ from broken_bases import (
     SEED,
     BrokenBase,
     DelayedLink,
-    DropsBehindGarbage,
     LineFaultsAfterChecksumErrors,
     ReadsAnyLength,
     RewritingStack,
@@ -319,13 +318,6 @@ def test_a_base_that_behaves_as_the_reference_gets_warnings_that_name_it_and_no_
     for result in report.results:
         if result.status is Status.WARN:
             assert "the reference" in result.message, explain(report)
-
-
-def test_a_base_that_drops_a_request_without_an_error_answer_fails() -> None:
-    report = run_checks_against(DropsBehindGarbage(simulated_base()), fast(only={NUMBER_OF["garbage"]}))
-    (result,) = report.results
-    assert result.status is Status.FAIL, explain(report)
-    assert "no ERROR said it was dropped" in result.message
 
 
 def test_a_probe_answered_by_a_line_fault_is_sent_again_as_a_core_does() -> None:

@@ -553,7 +553,7 @@ def _pcap_header(link_type: int = 147) -> bytes:
     ("content", "message"),
     [
         (b"hello world\n", "not hex text: 'hello' at line 1 column 1"),
-        (b"10 02 F8 3", "odd number of digits"),
+        (b"10 02 F8 301", "'301' has an odd number of digits"),
         (b"\x0a\x0d\x0d\x0a" + bytes(20), "pcapng is not supported"),
         (_pcap_header(1), "link type 1 is not a ctrlbus capture"),
         (_pcap_header() + struct.pack("<IIII", 0, 0, 2, 2) + b"\x07\x10", "direction byte 7"),

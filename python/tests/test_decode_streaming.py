@@ -114,13 +114,13 @@ def test_decode_output_comes_before_the_input_ends() -> None:
 
 
 def test_pieces_cut_anywhere_decode_as_the_whole(monkeypatch: pytest.MonkeyPatch) -> None:
-    # Tokens, comments, "0x" prefixes, multi-byte characters and odd digit runs cut across
+    # Tokens, comments, "0x" prefixes, multi-byte characters and one-digit bytes cut across
     # pieces of 7 bytes read as they do in one piece.
     text = (
         "# a comment with ünïcode that is longer than a piece\n"
         "10 02 F8 30 DA, 0x50,0x03:00 02 50 03 02\n"
         "1003f81001fa   # CONNECT_BASE in one token\n"
-        "1 0 0 2 F 8 3 0 D A\n"
+        "10 2 F8 30 DA\n"
     ).encode()
     whole = decode_cmd.decode_bytes(text, input_format="hex")
     monkeypatch.setattr(decode_cmd, "_READ_SIZE", 7)

@@ -1,12 +1,13 @@
 # SPDX-License-Identifier: MIT
-"""The Cortex-M3 firmware (c/firmware/) under QEMU's mps2-an385 board.
+"""The Cortex-M3 firmware under QEMU's mps2-an385 board (c/ports/mps2_an385, behind c/ports/port.h).
 
-The firmware is built here with its own Makefile (make -C c/firmware), so `make test` always runs
-the current sources. QEMU's UART0 is a Unix socket in a fresh directory: no port to collide with.
+The images are built here with c/ports/Makefile (make -C c/ports mps2_an385), so `make test`
+always runs the current sources. QEMU's UART0 is a Unix socket in a fresh directory: no port to
+collide with. Where the images are and what they are called is said here only (FIRMWARE_*).
 
-Two images run: the board bring-up probe, uart-echo.elf (vector table and start-up, the UART0 RX
-interrupt (IRQ 0), the interrupt-to-main-loop ring and the TX path, proven by echoing bytes), and
-ctrlbus-base.elf, the C base stack serving the simulated base (the acceptance test of issue 3:
+Two images run: the board bring-up probe, uart-echo-qemu.elf (vector table and start-up, the UART0
+RX interrupt (IRQ 0), the interrupt-to-main-loop ring and the TX path, proven by echoing bytes),
+and simbase-qemu.elf, the C base stack serving the simulated base (the acceptance test of issue 3:
 the firmware answers the Core's requests over the emulated UART, and its motor watchdog shows).
 """
 
@@ -29,8 +30,16 @@ from base_harness import REPO, FramePeer, Process, connect_unix
 
 from ctrlbus.frame import Frame, encode
 
-FIRMWARE_SOURCES = REPO / "c" / "firmware"
-FIRMWARE_BUILD = REPO / "build" / "firmware"
+FIRMWARE_SOURCES = REPO / "c" / "ports"
+FIRMWARE_BUILD = REPO / "build" / "ports" / "mps2_an385"
+FIRMWARE_BASE = FIRMWARE_BUILD / "simbase-qemu.elf"
+FIRMWARE_BASE_SDK2020 = FIRMWARE_BUILD / "simbase-sdk2020-qemu.elf"
+FIRMWARE_ECHO = FIRMWARE_BUILD / "uart-echo-qemu.elf"
+
+
+def build_firmware_command() -> list[str]:
+    """The make command that builds the mps2-an385 images (the board's target of c/ports/Makefile)."""
+    return ["make", "-C", str(FIRMWARE_SOURCES), f"O={FIRMWARE_BUILD.parent}", "mps2_an385"]
 
 
 def qemu_command(kernel: Path, uart_socket: Path) -> list[str]:
@@ -67,7 +76,7 @@ def firmware_images() -> Path:
         if shutil.which(tool) is None:
             pytest.fail(f"{tool} is missing: scripts/setup.sh installs it")
     build = subprocess.run(
-        ["make", "-C", str(FIRMWARE_SOURCES), f"O={FIRMWARE_BUILD}"],
+        build_firmware_command(),
         capture_output=True,
         text=True,
         timeout=600,
@@ -96,15 +105,15 @@ def run_in_qemu(kernel: Path) -> Iterator[FramePeer]:
 @pytest.fixture
 def echo_uart(firmware_images: Path) -> Iterator[FramePeer]:
     """The bring-up probe running in QEMU, and the test's end of its UART0."""
-    yield from run_in_qemu(firmware_images / "uart-echo.elf")
+    yield from run_in_qemu(FIRMWARE_ECHO)
 
 
 @pytest.fixture
 def base_uart(firmware_images: Path) -> Iterator[FramePeer]:
     """The ctrlbus base firmware running in QEMU, and the test's end of its UART0."""
-    kernel = firmware_images / "ctrlbus-base.elf"
+    kernel = FIRMWARE_BASE
     if not kernel.exists():
-        pytest.fail(f"{kernel} was not built: the firmware Makefile says why (make -C c/firmware)")
+        pytest.fail(f"{kernel} was not built: the Makefile says why ({' '.join(build_firmware_command())})")
     yield from run_in_qemu(kernel)
 
 
@@ -221,7 +230,7 @@ def test_base_firmware_loses_nothing_in_a_burst_longer_than_its_ring(base_uart: 
 
 @pytest.mark.parametrize(
     ("image", "profile"),
-    [("ctrlbus-base.elf", "reference"), ("ctrlbus-base-sdk2020.elf", "sdk2020")],
+    [(FIRMWARE_BASE.name, "reference"), (FIRMWARE_BASE_SDK2020.name, "sdk2020")],
 )
 def test_conformance_checker_passes_against_the_firmware(
     firmware_images: Path, tmp_path: Path, image: str, profile: str

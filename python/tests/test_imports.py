@@ -126,6 +126,7 @@ LAYERS = {
     "cli": 6,
     "demo": 6,
     "web": 6,
+    "ros2": 6,
     "__main__": 6,
 }
 

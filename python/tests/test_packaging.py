@@ -107,10 +107,13 @@ def test_the_metadata_is_complete(dist: Path) -> None:
     for version in SUPPORTED:
         assert f"Programming Language :: Python :: {version}" in classifiers
     assert "Typing :: Typed" in classifiers
-    # Users choose only the dashboard; the contributors' tools are dependency groups.
-    assert meta.get_all("Provides-Extra") == ["web"]
+    # Users choose the dashboard and the ROS 2 bridge; the contributors' tools are dependency groups.
+    assert meta.get_all("Provides-Extra") == ["web", "ros2"]
     requirements = meta.get_all("Requires-Dist") or []
-    assert all("extra ==" not in dep or 'extra == "web"' in dep for dep in requirements)
+    assert all(
+        "extra ==" not in dep or 'extra == "web"' in dep or 'extra == "ros2"' in dep for dep in requirements
+    )
+    assert any(dep.startswith("cyclonedds") and 'extra == "ros2"' in dep for dep in requirements)
 
 
 def test_the_wheel_carries_the_licence_data_and_command(dist: Path) -> None:

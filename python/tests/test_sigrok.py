@@ -201,6 +201,8 @@ def frame_text(record: dict[str, Any]) -> str:
         answered = None
     else:
         label = (record["name"] or f"0x{record['cmd']:02X}") + (f" to {record['to']}" if record["to"] else "")
+        if record["guess"]:  # an OK read by its size alone: both decoders say it is a guess
+            label += f" (a guess: to {record['guess']})"
         answered = record["to"] or record.get("guess") or "SYNC"  # SYNC: answers that need no request
     text = ""
     if record["fields"] is not None:

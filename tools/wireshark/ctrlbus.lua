@@ -23,9 +23,10 @@
 -- (ctrlbus.sensors.x_mm_q8); list fields occur once per element, in order. A field whose contract
 -- value is null (or empty bytes) is absent. The message itself: ctrlbus.msg.kind (request/answer),
 -- ctrlbus.msg.name, ctrlbus.msg.to (the request an answer answers), ctrlbus.msg.request_in.
--- Decoder results: ctrlbus.stream.event (a raised event, contract name), ctrlbus.stream.silent (a
--- failure inside an earlier failure's span: counted, no event), ctrlbus.stream.offset (offset in
--- that direction's byte stream), ctrlbus.counters.* (the direction's counters after the record).
+-- Decoder results: ctrlbus.stream.event (a raised event, contract name), ctrlbus.stream.silent and
+-- .silent_count (failures inside an earlier failure's span, counted with no event: per kind, in the
+-- run of silently dropped bytes they lie in), ctrlbus.stream.offset (offset in that direction's
+-- byte stream), ctrlbus.counters.* (the direction's counters after the record).
 --
 -- Pairing answers with requests: the outstanding request is the last request frame (Core to base)
 -- decoded. An answer OK, SYNC, ECHO or INVALID answers it and clears it. An ERROR answers it and
@@ -109,6 +110,7 @@ local f = {
     msg_error = ProtoField.string("ctrlbus.msg.error", "Message error"),
     event = ProtoField.string("ctrlbus.stream.event", "Decoder event"),
     silent = ProtoField.string("ctrlbus.stream.silent", "Silent failure"),
+    silent_count = ProtoField.uint32("ctrlbus.stream.silent_count", "Silent failures of this kind", base.DEC),
     offset = ProtoField.uint32("ctrlbus.stream.offset", "Stream offset", base.DEC),
     discarded = ProtoField.bytes("ctrlbus.stream.discarded", "Discarded bytes"),
     expected = ProtoField.uint8("ctrlbus.stream.checksum_expected", "Checksum expected", base.HEX),
@@ -205,22 +207,63 @@ end
 -- The stream decoder (vectors/README.md, "The stream decoder, precisely"), one per direction.
 --
 -- Bytes are taken one at a time, so what is "buffered" when a candidate fails is exactly what the
--- rules mean. Each byte remembers its packet and its offset there, so that results can point into
--- the packets they came from. Results are appended to `out` as items:
+-- rules mean. The records whose bytes are still buffered are kept whole (`chunks`), so that results
+-- can point into the packets they came from. Results are appended to `out` as items:
 --   { type = "frame", data, offset, first_packet, first_offset, last_packet }
---   { type = "discarded", parts (data once finished), offset, packet, packet_offset, raised, silent }
---   { type = "failure", kind, raised, data, offset, packet, packet_offset, expected, found, declared }
---   { type = "empty_frame", raised, data, offset, packet, packet_offset }
+--   { type = "discarded", size, data (once finished), offset, packet, packet_offset, raised, silent,
+--     failures (silent runs only: kind -> how many candidates failed inside the run) }
+--   { type = "failure", kind, raised, size, offset, packet, packet_offset, expected, found, declared }
+--   { type = "empty_frame", raised, data, size, offset, packet, packet_offset }
+-- (all but frames are compact arrays, read by the same names: see compact_item below)
+--
+-- Cost: hostile input can make every third byte start a candidate of 65,539 bytes (`50 FF FF`
+-- repeated), so nothing may cost a candidate's size per failure. Checksums come from a running
+-- XOR of the stream (the XOR of a span is the XOR of two prefix values), a failure keeps the size
+-- of its candidate instead of a copy of its bytes, failures inside an earlier failure's span
+-- (silent: counted, no event) join the run of silently dropped bytes they lie in, and runs of
+-- garbage are dropped in one step. So the work is O(1) per byte, and the memory kept per record is
+-- its frames, its raised events and the bytes it dropped, never a candidate per failure.
+
+-- Items other than frames can be as many as a third of the bytes (`10 00 FF` repeated raises a
+-- checksum error every third byte), and every record's items are kept for later passes: they are
+-- arrays (a Lua table with named fields costs about 700 bytes, an array of 10 about 220) read and
+-- written by field name through these metatables.
+local function compact_item(fields)
+    return {
+        __index = function(item, name)
+            local index = fields[name]
+            if index then return rawget(item, index) end
+        end,
+        __newindex = function(item, name, value) rawset(item, fields[name] or name, value) end,
+    }
+end
+local DISCARDED = compact_item({ type = 1, offset = 2, size = 3, packet = 4, packet_offset = 5, raised = 6,
+    silent = 7, data = 8, failures = 9 })
+local FAILURE = compact_item({ type = 1, offset = 2, size = 3, packet = 4, packet_offset = 5, raised = 6,
+    kind = 7, expected = 8, found = 9, declared = 10 })
+local EMPTY_FRAME = compact_item({ type = 1, offset = 2, size = 3, packet = 4, packet_offset = 5, raised = 6,
+    data = 7 })
 
 local Decoder = {}
 Decoder.__index = Decoder
+
+local FLAG_PATTERN = "[\16\80]"  -- 0x10 or 0x50
 
 function Decoder.new(max_frame, timeout_ms)
     local counters = {}
     for _, name in ipairs(COUNTER_NAMES) do counters[name] = 0 end
     return setmetatable({
-        bytes = {}, packets = {}, packet_offsets = {}, head = 1, tail = 0,
+        -- The buffered bytes: a ring of max_frame slots (no candidate is ever longer), the byte of
+        -- stream offset i in slot i % max_frame + 1; head and tail are the stream offsets of the
+        -- first and last byte buffered (tail = head - 1 when none is).
+        bytes = {}, head = 0, tail = -1,
+        prefix = {},           -- per slot: XOR of the stream's bytes up to that byte ...
+        consumed_prefix = 0,   -- ... so the XOR of bytes head..i is prefix(i) XOR this
+        chunks = {},           -- the records holding buffered bytes: { packet, start, data }
+        first_chunk = 1,       -- the chunk holding bytes[head] (or the next byte)
+        last_chunk = 0,
         stream_offset = 0,     -- stream offset of bytes[head]
+        fed = 0,               -- bytes of this direction fed so far
         silent = 0,            -- how many bytes from head on lie in a failed candidate's span
         quiet = false,         -- an event was raised since the last yielded frame
         counters = counters,
@@ -228,74 +271,169 @@ function Decoder.new(max_frame, timeout_ms)
         timeout_ms = timeout_ms,
         last_time = nil,
         need = 1,              -- bytes that must be buffered before anything can be decided
+        chunks_by_packet = {}, -- packet number -> chunk, for the items of the record being fed
     }, Decoder)
 end
 
 function Decoder:count() return self.tail - self.head + 1 end
 
-function Decoder:slice(count)
-    local chars = {}
-    for i = 0, count - 1 do chars[#chars + 1] = string.char(self.bytes[self.head + i]) end
-    return table.concat(chars)
+-- The chunk holding stream offset `offset` (at or after head), and its index.
+function Decoder:chunk_at(offset)
+    local chunks, index = self.chunks, self.first_chunk
+    while chunks[index].start + #chunks[index].data <= offset do index = index + 1 end
+    return chunks[index], index
 end
 
-function Decoder:consume(count)
-    for i = self.head, self.head + count - 1 do
-        self.bytes[i], self.packets[i], self.packet_offsets[i] = nil, nil, nil
+-- `count` bytes of the stream from `offset` on, from the chunks (no byte-by-byte copy).
+function Decoder:stream_bytes(offset, count)
+    local chunk, index = self:chunk_at(offset)
+    local parts = {}
+    while count > 0 do
+        local from = offset - chunk.start + 1
+        local take = math.min(count, #chunk.data - from + 1)
+        parts[#parts + 1] = chunk.data:sub(from, from + take - 1)
+        offset, count = offset + take, count - take
+        index = index + 1
+        chunk = self.chunks[index]
     end
-    self.head = self.head + count
-    self.stream_offset = self.stream_offset + count
-    self.silent = math.max(0, self.silent - count)
-    if self.head > self.tail then self.head, self.tail = 1, 0 end
+    return table.concat(parts)
 end
 
 function Decoder:origin()
-    return self.packets[self.head], self.packet_offsets[self.head]
+    local chunk = self:chunk_at(self.stream_offset)
+    return chunk.packet, self.stream_offset - chunk.start
 end
 
-function Decoder:discard_garbage(out)
+-- The buffered byte at stream offset `offset`.
+function Decoder:byte_at(offset) return self.bytes[offset % self.max_frame + 1] end
+
+-- XOR of `count` buffered bytes from head on.
+function Decoder:xor_of(count)
+    if count == 0 then return 0 end
+    return bxor(self.prefix[(self.head + count - 1) % self.max_frame + 1], self.consumed_prefix)
+end
+
+function Decoder:consume(count)
+    self.consumed_prefix = self.prefix[(self.head + count - 1) % self.max_frame + 1]
+    self.head = self.head + count
+    self:advance(count)
+end
+
+-- The stream moved on by `count` bytes (consumed, or dropped before they were buffered).
+function Decoder:advance(count)
+    self.stream_offset = self.stream_offset + count
+    self.silent = math.max(0, self.silent - count)
+    local chunks = self.chunks
+    while chunks[self.first_chunk] and chunks[self.first_chunk].start + #chunks[self.first_chunk].data
+        <= self.stream_offset do
+        self.first_chunk = self.first_chunk + 1
+    end
+end
+
+-- Forget the chunks whose bytes are all consumed (once the record's items are finished).
+function Decoder:prune()
+    for index = self.first_chunk - 1, 1, -1 do
+        local chunk = self.chunks[index]
+        if not chunk then break end
+        self.chunks[index], self.chunks_by_packet[chunk.packet] = nil, nil
+    end
+end
+
+-- Note `count` dropped bytes from the stream offset on (all from one chunk): joined to the run of
+-- dropped bytes before them where they continue one (same packet, adjacent, the same silence, no
+-- event of their own). `failed` names the kind of a silent failure whose flag byte is dropped;
+-- `garbage` says whether the first byte may raise the garbage event. Returns the item.
+function Decoder:note_drop(out, count, failed, garbage)
     local silent = self.silent > 0
-    local raise = not silent and not self.quiet
+    local raise = garbage and not silent and not self.quiet
     if raise then self.quiet = true end
-    self.counters.bytes_discarded = self.counters.bytes_discarded + 1
     local packet, packet_offset = self:origin()
     local last = out[#out]
-    local byte = string.char(self.bytes[self.head])
+    local item
     if last and last.type == "discarded" and last.packet == packet and last.silent == silent
-        and last.offset + #last.parts == self.stream_offset and not raise then
-        last.parts[#last.parts + 1] = byte  -- joined by finish_items: no quadratic string building
+        and last.offset + last.size == self.stream_offset and not raise then
+        item = last
+        item.size = item.size + count
     else
-        out[#out + 1] = { type = "discarded", parts = { byte }, offset = self.stream_offset, packet = packet,
-            packet_offset = packet_offset, raised = raise, silent = silent }
+        item = setmetatable({ "discarded", self.stream_offset, count, packet, packet_offset, raise, silent,
+            false, false }, DISCARDED)
+        out[#out + 1] = item
     end
-    self:consume(1)
+    if failed then
+        item.failures = item.failures or {}
+        item.failures[failed] = (item.failures[failed] or 0) + 1
+    end
+    return item
 end
 
--- Join the bytes of garbage runs once a record is done.
-local function finish_items(items)
+-- How many bytes from the stream offset on can be dropped as one piece: not past `count`, the end
+-- of the silent span (where the silence changes) or the end of the chunk.
+function Decoder:piece(count)
+    local chunk = self:chunk_at(self.stream_offset)
+    local take = math.min(count, chunk.start + #chunk.data - self.stream_offset)
+    if self.silent > 0 then take = math.min(take, self.silent) end
+    return take
+end
+
+-- Drop the garbage bytes from head on up to the next flag byte buffered.
+function Decoder:discard_garbage(out)
+    local bytes, ring, stop = self.bytes, self.max_frame, self.head
+    while stop <= self.tail do
+        local byte = bytes[stop % ring + 1]
+        if byte == 0x10 or byte == 0x50 then break end
+        stop = stop + 1
+    end
+    local count = stop - self.head
+    self.counters.bytes_discarded = self.counters.bytes_discarded + count
+    while count > 0 do
+        local take = self:piece(count)
+        self:note_drop(out, take, nil, true)
+        self:consume(take)
+        count = count - take
+    end
+end
+
+-- Drop garbage before it is buffered: bytes `from`..`to` of the chunk being fed (buffer empty).
+function Decoder:skip_garbage(out, from, to)
+    local count = to - from + 1
+    self.counters.bytes_discarded = self.counters.bytes_discarded + count
+    while count > 0 do
+        local take = self:piece(count)
+        self:note_drop(out, take, nil, true)
+        self.head, self.tail = self.head + take, self.tail + take  -- still none buffered
+        self:advance(take)
+        count = count - take
+    end
+end
+
+-- Give dropped-byte runs their bytes once a record is done.
+function Decoder:finish_items(items)
     for _, item in ipairs(items) do
-        if item.parts then
-            item.data, item.parts = table.concat(item.parts), nil
+        if item.type == "discarded" then
+            local data = self.chunks_by_packet[item.packet].data
+            item.data = data:sub(item.packet_offset + 1, item.packet_offset + item.size)
         end
     end
 end
 
 local FAILURE_COUNTERS = { checksum_error = "checksum_errors", oversize = "oversize", timeout = "timeouts" }
 
-function Decoder:fail(kind, out, candidate_size, info)
+function Decoder:fail(kind, out, candidate_size, expected, found, declared)
     local buffered = self:count()
     local raised = self.silent == 0
     local counters = self.counters
     counters[FAILURE_COUNTERS[kind]] = counters[FAILURE_COUNTERS[kind]] + 1
     counters.resyncs = counters.resyncs + 1
     counters.bytes_discarded = counters.bytes_discarded + 1
-    if raised then self.quiet = true end
-    local packet, packet_offset = self:origin()
-    local item = { type = "failure", kind = kind, raised = raised, data = self:slice(math.min(candidate_size, buffered)),
-        offset = self.stream_offset, packet = packet, packet_offset = packet_offset }
-    for key, value in pairs(info or {}) do item[key] = value end
-    out[#out + 1] = item
     local span = buffered - 1
+    if raised then
+        self.quiet = true
+        local packet, packet_offset = self:origin()
+        out[#out + 1] = setmetatable({ "failure", self.stream_offset, math.min(candidate_size, buffered), packet,
+            packet_offset, true, kind, expected or false, found or false, declared or false }, FAILURE)
+    else
+        self:note_drop(out, 1, kind, false)
+    end
     self:consume(1)
     self.silent = math.max(self.silent, span)
 end
@@ -303,11 +441,10 @@ end
 -- Decide what can be decided about the bytes buffered. With `flush` (the timeout struck),
 -- incomplete candidates fail as timeouts instead of waiting (rule 5).
 function Decoder:process(out, flush)
-    local bytes = self.bytes
     while self.head <= self.tail do
         local head = self.head
         local available = self.tail - head + 1
-        local flag = bytes[head]
+        local flag = self:byte_at(head)
         if flag ~= 0x10 and flag ~= 0x50 then
             self:discard_garbage(out)
         else
@@ -316,33 +453,33 @@ function Decoder:process(out, flush)
                 if not flush then self.need = header return end
                 self:fail("timeout", out, available)
             else
-                local len = flag == 0x10 and bytes[head + 1] or (bytes[head + 1] + 256 * bytes[head + 2])
+                local len = flag == 0x10 and self:byte_at(head + 1)
+                    or (self:byte_at(head + 1) + 256 * self:byte_at(head + 2))
                 local size = header + len + 1
                 if size > self.max_frame then
-                    self:fail("oversize", out, header, { declared = size })
+                    self:fail("oversize", out, header, nil, nil, size)
                 elseif available < size then
                     if not flush then self.need = size return end
                     self:fail("timeout", out, available)
                 else
-                    local sum = 0
-                    for i = head, head + size - 2 do sum = bxor(sum, bytes[i]) end
-                    local found = bytes[head + size - 1]
+                    local sum = self:xor_of(size - 1)
+                    local found = self:byte_at(head + size - 1)
                     if sum ~= found then
-                        self:fail("checksum_error", out, size, { expected = sum, found = found })
+                        self:fail("checksum_error", out, size, sum, found)
                     elseif len == 0 then
                         local raised = self.silent == 0
                         if raised then self.quiet = true end
                         self.counters.empty_frames = self.counters.empty_frames + 1
                         self.counters.bytes_discarded = self.counters.bytes_discarded + size
                         local packet, packet_offset = self:origin()
-                        out[#out + 1] = { type = "empty_frame", raised = raised, data = self:slice(size),
-                            offset = self.stream_offset, packet = packet, packet_offset = packet_offset }
+                        out[#out + 1] = setmetatable({ "empty_frame", self.stream_offset, size, packet, packet_offset,
+                            raised, self:stream_bytes(self.stream_offset, size) }, EMPTY_FRAME)
                         self:consume(size)
                     else
                         local packet, packet_offset = self:origin()
-                        out[#out + 1] = { type = "frame", data = self:slice(size), offset = self.stream_offset,
-                            first_packet = packet, first_offset = packet_offset,
-                            last_packet = self.packets[head + size - 1] }
+                        out[#out + 1] = { type = "frame", data = self:stream_bytes(self.stream_offset, size),
+                            offset = self.stream_offset, first_packet = packet, first_offset = packet_offset,
+                            last_packet = self:chunk_at(self.stream_offset + size - 1).packet }
                         self.counters.frames = self.counters.frames + 1
                         self.quiet = false
                         self:consume(size)
@@ -361,13 +498,34 @@ function Decoder:feed(data, time, packet, out)
         and math.floor((time - self.last_time) * 1e6 + 0.5) > self.timeout_ms * 1000 then
         self:process(out, true)
     end
-    if #data > 0 then self.last_time = time end
-    for i = 1, #data do
-        self.tail = self.tail + 1
-        self.bytes[self.tail] = data:byte(i)
-        self.packets[self.tail] = packet
-        self.packet_offsets[self.tail] = i - 1
-        if self.tail - self.head + 1 >= self.need then self:process(out, false) end
+    if #data == 0 then return end
+    self.last_time = time
+    local chunk = { packet = packet, start = self.fed, data = data }
+    self.last_chunk = self.last_chunk + 1
+    self.chunks[self.last_chunk] = chunk
+    self.chunks_by_packet[packet] = chunk
+    self.fed = self.fed + #data
+    local bytes, prefix, ring = self.bytes, self.prefix, self.max_frame
+    local i = 1
+    while i <= #data do
+        if self.head > self.tail then
+            -- nothing buffered: garbage up to the next flag byte is dropped without buffering it
+            local flag_at = data:find(FLAG_PATTERN, i) or #data + 1
+            if flag_at > i then
+                self:skip_garbage(out, i, flag_at - 1)
+                i = flag_at
+            end
+        end
+        if i <= #data then
+            local tail = self.tail
+            local byte = data:byte(i)
+            local running = tail >= self.head and prefix[tail % ring + 1] or self.consumed_prefix
+            tail = tail + 1
+            self.tail = tail
+            bytes[tail % ring + 1], prefix[tail % ring + 1] = byte, bxor(running, byte)
+            if tail - self.head + 1 >= self.need then self:process(out, false) end
+            i = i + 1
+        end
     end
 end
 
@@ -440,12 +598,15 @@ end
 local function first_pass(number, direction, data, time)
     local decoder = state.decoders[direction]
     local items = {}
+    local start = decoder.fed
     decoder:feed(data, time, number, items)
-    finish_items(items)
+    decoder:finish_items(items)
+    decoder:prune()
     pair_frames(direction, items)
     local counters = {}
     for key, value in pairs(decoder.counters) do counters[key] = value end
-    state.records[number] = { direction = direction, items = items, buffered = decoder:count(), counters = counters }
+    state.records[number] = { direction = direction, items = items, buffered = decoder:count(), counters = counters,
+        start = start }
 end
 
 ---------------------------------------------------------------------------------------------------
@@ -843,59 +1004,88 @@ local function event_field(tree, item, kind)
     end
 end
 
-local function show_other(tree, tvb, pinfo, item, summaries)
-    local label = "Bytes from packet " .. item.packet
-    local last_packet = item.packet
-    local itvb = item_tvb(tvb, pinfo, item.packet, item.packet_offset, last_packet, item.data, label)
-    local whole = itvb()
-    if item.type == "discarded" then
-        local sub = tree:add(f.discarded, whole)
-        sub:prepend_text(string.format("%d garbage byte(s): ", #item.data))
-        sub:add(f.offset, item.offset)
-        if item.raised then
-            sub:add(f.event, "garbage")
-            sub:add_proto_expert_info(ex.garbage, string.format("%d garbage byte(s) outside any frame", #item.data))
-            summaries[#summaries + 1] = "garbage"
-        elseif item.silent then
-            sub:append_text(" (inside the span of an earlier failure)")
-        end
-        return
+-- The bytes of a failed candidate that lie in this record (a failure keeps no copy of its bytes:
+-- see the stream decoder), or an empty range when they all came in earlier records.
+local function candidate_range(tvb, record, item)
+    local first = math.max(item.offset, record.start)
+    local last = math.min(item.offset + item.size, record.start + tvb:len() - 1)
+    if last <= first then return tvb(0, 0) end
+    return tvb(1 + first - record.start, last - first)
+end
+
+local function silent_failures_text(failures)
+    local parts = {}
+    for _, kind in ipairs({ "checksum_error", "oversize", "timeout" }) do
+        if failures[kind] then parts[#parts + 1] = string.format("%d %s", failures[kind], kind) end
     end
-    if item.type == "empty_frame" then
-        local sub = tree:add(whole, "Empty frame (LEN = 0): not a message")
-        sub:add(f.offset, item.offset)
-        event_field(sub, item, "empty_frame")
-        if item.raised then
-            sub:add_proto_expert_info(ex.empty)
-            summaries[#summaries + 1] = "empty frame"
-        end
-        return
-    end
+    return table.concat(parts, ", ")
+end
+
+local function show_failure(tree, tvb, pinfo, record, item, summaries)
+    local whole = candidate_range(tvb, record, item)
     local sub
     if item.kind == "checksum_error" then
         local text = string.format("Checksum error: expected 0x%02X, found 0x%02X", item.expected, item.found)
-        sub = tree:add(whole, text .. string.format(" (candidate of %d bytes)", #item.data))
+        sub = tree:add(whole, text .. string.format(" (candidate of %d bytes)", item.size))
         sub:add(f.expected, item.expected)
         sub:add(f.found, item.found)
         sub:add_proto_expert_info(ex.checksum, text)
-        if item.raised then summaries[#summaries + 1] = string.format("checksum error (0x%02X, expected 0x%02X)", item.found, item.expected) end
+        summaries[#summaries + 1] = string.format("checksum error (0x%02X, expected 0x%02X)", item.found, item.expected)
     elseif item.kind == "oversize" then
         sub = tree:add(whole, string.format("Oversize candidate: announces %d bytes, more than %d", item.declared, P.prefs.max_frame))
         sub:add(f.declared, item.declared)
-        if item.raised then
-            sub:add_proto_expert_info(ex.oversize)
-            summaries[#summaries + 1] = "oversize"
-        end
+        sub:add_proto_expert_info(ex.oversize)
+        summaries[#summaries + 1] = "oversize"
     else
-        sub = tree:add(whole, string.format("Timeout: a partial frame of %d bytes was abandoned", #item.data))
-        if item.raised then
-            sub:add_proto_expert_info(ex.timeout)
-            summaries[#summaries + 1] = "timeout"
-        end
+        sub = tree:add(whole, string.format("Timeout: a partial frame of %d bytes was abandoned", item.size))
+        sub:add_proto_expert_info(ex.timeout)
+        summaries[#summaries + 1] = "timeout"
+    end
+    if item.packet ~= pinfo.number then
+        sub:add(f.first_packet, item.packet):append_text(string.format(" (candidate starts at its byte %d)", item.packet_offset))
     end
     sub:add(f.offset, item.offset)
     event_field(sub, item, item.kind)
     sub:append_text("; its flag byte is dropped and the bytes after it are scanned again")
+end
+
+local function show_other(tree, tvb, pinfo, record, item, summaries)
+    if item.type == "failure" then
+        return show_failure(tree, tvb, pinfo, record, item, summaries)
+    end
+    local label = "Bytes from packet " .. item.packet
+    local itvb = item_tvb(tvb, pinfo, item.packet, item.packet_offset, item.packet, item.data, label)
+    local whole = itvb()
+    if item.type == "discarded" then
+        local sub = tree:add(f.discarded, whole)
+        sub:prepend_text(string.format("%d garbage byte(s): ", item.size))
+        sub:add(f.offset, item.offset)
+        if item.raised then
+            sub:add(f.event, "garbage")
+            sub:add_proto_expert_info(ex.garbage, string.format("%d garbage byte(s) outside any frame", item.size))
+            summaries[#summaries + 1] = "garbage"
+        elseif item.silent then
+            sub:append_text(" (inside the span of an earlier failure)")
+        end
+        if item.failures then
+            -- flag bytes of candidates that failed inside the span: counted, no event
+            sub:append_text(" (among them the flags of " .. silent_failures_text(item.failures) .. ")")
+            for _, kind in ipairs({ "checksum_error", "oversize", "timeout" }) do
+                if item.failures[kind] then
+                    sub:add(f.silent, kind):append_text(string.format(" × %d (counted, no event)", item.failures[kind]))
+                    sub:add(f.silent_count, item.failures[kind])
+                end
+            end
+        end
+        return
+    end
+    local sub = tree:add(whole, "Empty frame (LEN = 0): not a message")
+    sub:add(f.offset, item.offset)
+    event_field(sub, item, "empty_frame")
+    if item.raised then
+        sub:add_proto_expert_info(ex.empty)
+        summaries[#summaries + 1] = "empty frame"
+    end
 end
 
 function P.dissector(tvb, pinfo, tree)
@@ -925,7 +1115,7 @@ function P.dissector(tvb, pinfo, tree)
         if item.type == "frame" then
             show_frame(root, tvb, pinfo, direction, item, summaries)
         else
-            show_other(root, tvb, pinfo, item, summaries)
+            show_other(root, tvb, pinfo, record, item, summaries)
         end
     end
     if record.buffered > 0 then

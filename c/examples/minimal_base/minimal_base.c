@@ -23,12 +23,14 @@
 #ifndef MINIMAL_BASE_FRAME_BUFFER_SIZE
 #define MINIMAL_BASE_FRAME_BUFFER_SIZE CTRLBUS_BASE_FRAME_BUFFER_RECOMMENDED
 #endif
-/* 1: the GET_BASE_CONF answer is a variable filled in by main() rather than a constant. Where
- * const data stays in flash (ARM, RISC-V) the constant costs no RAM; avr-gcc keeps const data in
- * RAM and also stores its initial value in flash, so there the variable (in .bss, zeroed at
- * start-up) saves those 264 bytes of flash for the same RAM. The Uno's build sets it. */
-#ifndef MINIMAL_BASE_CONF_AT_INIT
-#define MINIMAL_BASE_CONF_AT_INIT 0
+/* Where const data stays in flash (ARM, RISC-V) the GET_BASE_CONF constant costs no RAM. avr-gcc
+ * copies const data into RAM unless it is PROGMEM, which the stack reads with memcpy_P when the
+ * library is built with CTRLBUS_CONST_IN_FLASH (ctrlbus_config.h): the Uno's build does. */
+#if CTRLBUS_CONST_IN_FLASH && defined(__AVR__)
+#include <avr/pgmspace.h>
+#define MINIMAL_BASE_IN_FLASH PROGMEM
+#else
+#define MINIMAL_BASE_IN_FLASH
 #endif
 /* 0: the stack's 10 ms. Emulators and hosts deliver bytes in bursts and pass 100. */
 #ifndef MINIMAL_BASE_FRAME_TIMEOUT_MS
@@ -87,12 +89,8 @@ static int32_t connect_info(void *context, ctrlbus_connect_base_answer_t *out)
 
 /* GET_BASE_CONF: round (type 0), radius 170 mm, two-wheel differential (motor type 0), no sensor,
  * no bumper. The stack streams it from here, field by field. */
-#define BASE_RADIUS_MM_Q8 (170u * 256u)
-#if MINIMAL_BASE_CONF_AT_INIT
-static ctrlbus_get_base_conf_answer_t base_conf; /* filled in by main() */
-#else
-static const ctrlbus_get_base_conf_answer_t base_conf = {.base_radius_mm_q8 = BASE_RADIUS_MM_Q8};
-#endif
+static const ctrlbus_get_base_conf_answer_t base_conf MINIMAL_BASE_IN_FLASH = {
+    .base_radius_mm_q8 = (uint32_t)CTRLBUS_Q8(170)};
 
 static int32_t status(void *context, ctrlbus_get_base_status_answer_t *out)
 {
@@ -182,9 +180,6 @@ int main(void)
         .charger_data = charger_data, .set_wheel_speeds = set_wheel_speeds,
         .set_velocity = set_velocity,
     };
-#if MINIMAL_BASE_CONF_AT_INIT
-    base_conf.base_radius_mm_q8 = BASE_RADIUS_MM_Q8;
-#endif
     ctrlbus_diffdrive_pose_reset(&robot.motion, 0.0f, 0.0f);
     /* The stack first, then the UART interrupt that feeds it. */
     if (ctrlbus_base_init(&base, &config, 0) != CTRLBUS_OK) {

@@ -2,7 +2,7 @@
 /* base_glue: the simulated base (simbase) served by the ctrlbus base stack (ctrlbus/base.h).
  *
  * One piece of code for both hosts of the simulated base: posix_base (c/examples/posix_base, a
- * pty or TCP link) and the QEMU firmware (c/firmware, UART0). They only move bytes and time:
+ * pty or TCP link) and the boards of c/ports (simbase_main.c, a UART). They only move bytes and time:
  *
  *     base_glue_init(&glue, &options, now_ms);
  *     on received bytes (main loop or UART interrupt):   base_glue_feed(&glue, data, size);

@@ -35,17 +35,17 @@ void simbase_answer_connect(const simbase_identity_t *identity, ctrlbus_connect_
 static void to_position(const simbase_mount_t *mount, ctrlbus_position_t *out)
 {
     /* Q8 fixed point; the angle is already 0..359 (unsigned on the wire). */
-    out->x_mm_q8 = mount->x_mm * 256;
-    out->y_mm_q8 = mount->y_mm * 256;
-    out->z_mm_q8 = mount->z_mm * 256;
-    out->angle_deg_q8 = (uint32_t)mount->angle_deg * 256u;
+    out->x_mm_q8 = CTRLBUS_Q8(mount->x_mm);
+    out->y_mm_q8 = CTRLBUS_Q8(mount->y_mm);
+    out->z_mm_q8 = CTRLBUS_Q8(mount->z_mm);
+    out->angle_deg_q8 = (uint32_t)CTRLBUS_Q8(mount->angle_deg);
 }
 
 void simbase_answer_base_conf(const simbase_t *sim, ctrlbus_get_base_conf_answer_t *out)
 {
     memset(out, 0, sizeof *out);
     out->base_type = 0; /* circle */
-    out->base_radius_mm_q8 = (uint32_t)simbase_radius_mm(sim) * 256u;
+    out->base_radius_mm_q8 = (uint32_t)CTRLBUS_Q8(simbase_radius_mm(sim));
     out->motor_type = 0; /* two-wheel differential */
     simbase_mount_t mount;
     out->sensor_num = (uint8_t)SIMBASE_SENSOR_COUNT;

@@ -246,7 +246,7 @@ typedef struct {
     uint8_t *command_queue;
     uint8_t command_queue_size;
     /* GET_BASE_CONF_ADV: the binary configuration blob, streamed from here (so it may live in
-     * flash). NULL or size 0: the request is answered 0x8000 and the Core asks GET_BASE_CONF. */
+     * flash; on AVR, PROGMEM with CTRLBUS_CONST_IN_FLASH). NULL or size 0: the request is answered 0x8000 and the Core asks GET_BASE_CONF. */
     const uint8_t *binary_config;
     uint16_t binary_config_size; /* at most 65534 */
     /* Optional decoder counters (frame.h), counted into when not NULL. */
@@ -263,50 +263,70 @@ typedef struct {
 
     /* ---- output -------------------------------------------------------------------------- */
     ctrlbus_write_fn write; /* required: where answers go (called only from ctrlbus_base_poll()) */
+    /* write's own argument, apart from `context`, so that a UART driver written once (its state
+     * here) serves any application (its state in `context`). */
     void *write_context;
 
     /* ---- the application: handlers, called from ctrlbus_base_poll() with `context` ------- */
+    /* One rule per callback below. "Mandatory": one of the 13 requests every base must answer
+     * (docs/protocol.md §5); a Core gives up on a base that answers one 0x8000, and
+     * ctrlbus_base_missing_handlers() names those left NULL. Every answer struct arrives zeroed,
+     * so a field left alone reads 0. Which profile a Core needs: CTRLBUS_PROFILE_REFERENCE for a
+     * SLAMWARE Core with the 2018/v4 firmware sizes, CTRLBUS_PROFILE_SDK2020 for a master on the
+     * vendor's 2020 SDK (ctrlbus_base_profile_t); `ctrlbus check --profile` tells which passes. */
     void *context;
-    /* CONNECT_BASE (version 1; the stack answers other versions 0x8000). The profile decides
-     * whether the firmware_version_suffix is sent (see ctrlbus_base_profile_t). */
+    /* Mandatory. CONNECT_BASE (version 1; the stack answers other versions 0x8000): model (ASCII),
+     * firmware and hardware versions, serial. The profile decides whether the
+     * firmware_version_suffix is sent (see ctrlbus_base_profile_t). */
     int32_t (*connect_info)(void *context, ctrlbus_connect_base_answer_t *out);
-    /* GET_BASE_CONF: not a handler but the answer itself, read field by field while it is
-     * written (264 bytes that never sit on the stack). The application owns it and may change it
-     * between polls; NULL: not supported (0x8000). A struct its check refuses (a count over 8) is
-     * answered 0x8002. */
+    /* Mandatory. GET_BASE_CONF: not a handler but the answer itself, read field by field while it
+     * is written (264 bytes that never sit on the stack). The application owns it and may change
+     * it between polls; NULL: not supported (0x8000). A struct its check refuses (a count over 8)
+     * is answered 0x8002. With CTRLBUS_CONST_IN_FLASH (ctrlbus_config.h) it is read as program
+     * memory: on AVR a PROGMEM constant, which then costs no RAM. sensor_num and bumper_num (0..8) say how many of the sensor_data
+     * channels and bumper_data bits are real; positions and radius in mm Q8 (CTRLBUS_Q8()). */
     const ctrlbus_get_base_conf_answer_t *base_conf;
+    /* Mandatory. GET_BASE_STATUS: battery percent, charging and docking state, error bits. */
     int32_t (*status)(void *context, ctrlbus_get_base_status_answer_t *out);
+    /* Mandatory. GET_BASE_MOTOR_DATA: each wheel's total travel in mm since start-up (wraps). */
     int32_t (*motor_data)(void *context, ctrlbus_get_base_motor_data_answer_t *out);
+    /* Mandatory. GET_BASE_SENSOR_DATA: channel i (mm Q16) is base_conf->sensors[i]; the channels
+     * from sensor_num on must read 0 (leave them: they arrive zeroed). 0 also means "no echo". */
     int32_t (*sensor_data)(void *context, ctrlbus_get_base_sensor_data_answer_t *out);
-    /* payload_size 0 (as zeroed) means 4 bytes. */
+    /* Mandatory. GET_BASE_BUMPER_DATA: bit i of bitmap is bumper i of base_conf (0..bumper_num-1),
+     * then the cliff sensors, ACTIVE LOW (0 = triggered): set every bit you do not drive to 1
+     * (0xFFFFFFFF: nothing pressed), since a zeroed bitmap reads "all pressed". payload_size 0
+     * (as zeroed) means 4 bytes. */
     int32_t (*bumper_data)(void *context, ctrlbus_get_base_bumper_data_answer_t *out);
-    /* Beacon data (data type 0; the stack answers other types 0x8000). out->probes must point at
-     * storage that outlives the call (the application's own array). */
+    /* Mandatory. GET_CHARGER_DATA, beacon data (data type 0; the stack answers other types
+     * 0x8000): probe_count probes (3: left, main, right), each a bitmap of the dock beacons that
+     * probe sees (bit0 left, bit1 main, bit2 right); left zeroed: no probe, no beacon seen.
+     * out->probes must point at storage that outlives the call (the application's own array). */
     int32_t (*charger_data)(void *context, ctrlbus_get_charger_data_answer_t *out);
-    /* SET_BASE_MOTOR: left and right wheel speeds in mm/s, after the limits. Also the default
-     * way the motor watchdog stops the wheels (set_wheel_speeds(context, 0, 0)). */
+    /* Mandatory. SET_BASE_MOTOR: left and right wheel speeds in mm/s, after the limits. Also the
+     * default way the motor watchdog stops the wheels (set_wheel_speeds(context, 0, 0)). */
     int32_t (*set_wheel_speeds)(void *context, int32_t left_mm_s, int32_t right_mm_s);
-    /* SET_V_AND_GET_DEADRECKON: apply the velocity (after the limits) and fill in the motion
-     * since the previous call (ctrlbus/diffdrive.h helps with both). has_timestamp_ms may be left
-     * false: the profile decides whether the field is sent and fills it in. */
+    /* Mandatory. SET_V_AND_GET_DEADRECKON: apply the velocity (after the limits) and fill in the
+     * motion since the previous call (ctrlbus/diffdrive.h helps with both). has_timestamp_ms may
+     * be left false: the profile decides whether the field is sent and fills it in. */
     int32_t (*set_velocity)(void *context,
                             const ctrlbus_set_v_and_get_deadreckon_request_t *velocity,
                             ctrlbus_set_v_and_get_deadreckon_answer_t *out);
-    /* The motor watchdog expired: stop the wheels. NULL: set_wheel_speeds(context, 0, 0) (and
+    /* Optional. The motor watchdog expired: stop the wheels. NULL: set_wheel_speeds(context, 0, 0) (and
      * nothing if that is NULL too: a base that moves must provide one of them). */
     void (*stop_motors)(void *context);
-    /* SEND_EVENT: any code, known or not. NULL: ignored (the request is still answered OK). */
+    /* Optional. SEND_EVENT: any code, known or not. NULL: ignored (still answered OK). */
     int32_t (*on_event)(void *context, uint8_t event);
-    /* BASE_CMD REBOOT: the stack answers OK, and once the answer's last byte has been handed to
+    /* Optional. BASE_CMD REBOOT: the stack answers OK, and once the answer's last byte has been handed to
      * write, forgets its session as a rebooted base would (the bytes received so far, the
      * pending commands (nCMD released), the health registry, the watchdog's state, the uptime
      * origin; the counters stay), then calls this. On an MCU it should wait until the UART has
      * sent the last byte, then reset; a host base may simply return and carry on.
      * NULL: REBOOT is answered 0x8000. */
     void (*reboot)(void *context);
-    /* BASE_CMD ENTER_DFU: called like reboot, after the OK answer. NULL: answered 0x8000. */
+    /* Optional. BASE_CMD ENTER_DFU: called like reboot, after the OK answer. NULL: answered 0x8000. */
     void (*enter_dfu)(void *context);
-    /* The nCMD line (docs/protocol.md [link-ncmd]): called with true when a command becomes
+    /* Optional. The nCMD line (docs/protocol.md [link-ncmd]): called with true when a command becomes
      * pending (drive nCMD low), false when the queue runs empty (release it). NULL: no line. */
     void (*command_line)(void *context, bool asserted);
 } ctrlbus_base_config_t;
@@ -348,10 +368,46 @@ typedef struct {
  * binary_config_size above 65534, or the sdk2020 profile with standard_answers;
  * CTRLBUS_ERR_UNSUPPORTED for a config that asks for a feature this build compiled out
  * (ctrlbus/ctrlbus_config.h): health_entries, command_queue, a velocity limit, the sdk2020
- * profile or a binary_config.
+ * profile or a binary_config. A config without some of the mandatory handlers is accepted:
+ * ctrlbus_base_missing_handlers() says which.
  * Not ISR-safe. Cost: O(1). */
 int32_t ctrlbus_base_init(ctrlbus_base_t *base, const ctrlbus_base_config_t *config,
                           uint32_t now_ms);
+
+/* The mandatory handlers (see ctrlbus_base_config_t) that a config leaves NULL, one bit each:
+ * a base that answers them 0x8000 is refused by a Core, and otherwise that shows only at run
+ * time. ctrlbus_base_init() accepts such a config (a base under construction may lack some);
+ * call this after it, in a debug build or a start-up self-test. 0: none missing. */
+#define CTRLBUS_BASE_NEEDS_CONNECT_INFO 0x001u
+#define CTRLBUS_BASE_NEEDS_BASE_CONF 0x002u
+#define CTRLBUS_BASE_NEEDS_STATUS 0x004u
+#define CTRLBUS_BASE_NEEDS_MOTOR_DATA 0x008u
+#define CTRLBUS_BASE_NEEDS_SENSOR_DATA 0x010u
+#define CTRLBUS_BASE_NEEDS_BUMPER_DATA 0x020u
+#define CTRLBUS_BASE_NEEDS_CHARGER_DATA 0x040u
+#define CTRLBUS_BASE_NEEDS_SET_WHEEL_SPEEDS 0x080u
+#define CTRLBUS_BASE_NEEDS_SET_VELOCITY 0x100u
+
+/* Which mandatory handlers base's config lacks (CTRLBUS_BASE_NEEDS_* bits; 0 for a NULL base or
+ * one not initialised). Inline, so that a firmware that never asks pays nothing for it.
+ * ISR-safe. Cost: O(1). */
+static inline uint16_t ctrlbus_base_missing_handlers(const ctrlbus_base_t *base)
+{
+    const ctrlbus_base_config_t *config = base != NULL ? base->config : NULL;
+    unsigned missing = 0u;
+    if (config != NULL) {
+        missing |= config->connect_info == NULL ? CTRLBUS_BASE_NEEDS_CONNECT_INFO : 0u;
+        missing |= config->base_conf == NULL ? CTRLBUS_BASE_NEEDS_BASE_CONF : 0u;
+        missing |= config->status == NULL ? CTRLBUS_BASE_NEEDS_STATUS : 0u;
+        missing |= config->motor_data == NULL ? CTRLBUS_BASE_NEEDS_MOTOR_DATA : 0u;
+        missing |= config->sensor_data == NULL ? CTRLBUS_BASE_NEEDS_SENSOR_DATA : 0u;
+        missing |= config->bumper_data == NULL ? CTRLBUS_BASE_NEEDS_BUMPER_DATA : 0u;
+        missing |= config->charger_data == NULL ? CTRLBUS_BASE_NEEDS_CHARGER_DATA : 0u;
+        missing |= config->set_wheel_speeds == NULL ? CTRLBUS_BASE_NEEDS_SET_WHEEL_SPEEDS : 0u;
+        missing |= config->set_velocity == NULL ? CTRLBUS_BASE_NEEDS_SET_VELOCITY : 0u;
+    }
+    return (uint16_t)missing;
+}
 
 /* Puts received bytes into the ring for the next ctrlbus_base_poll(). Returns how many it took
  * (0..len): bytes that find the ring full are dropped and counted in rx_dropped (a caller that can

@@ -36,6 +36,16 @@ extern "C" {
 #define CTRLBUS_VERSION_MINOR 1
 #define CTRLBUS_VERSION_PATCH 0
 
+/* Fixed point, as the protocol's fields carry it: Q8 (1/256: mm and degrees in GET_BASE_CONF) and
+ * Q16 (1/65536: velocities, deadreckon deltas, distances). The arithmetic is int32_t whatever the
+ * size of int, so CTRLBUS_Q8(170) cannot overflow where `170 << 8` would on a 16-bit int (AVR).
+ * value: an integer (a constant or a variable) in the field's unit; its Q form must fit an int32_t.
+ * The inverses give the integer part, rounded toward zero. Usable in constant initializers. */
+#define CTRLBUS_Q8(value) ((int32_t)(value) * INT32_C(256))
+#define CTRLBUS_Q16(value) ((int32_t)(value) * INT32_C(65536))
+#define CTRLBUS_FROM_Q8(q8) ((int32_t)(q8) / INT32_C(256))
+#define CTRLBUS_FROM_Q16(q16) ((int32_t)(q16) / INT32_C(65536))
+
 /* Error codes. Every one is negative so that "length or error" can share one int32_t. */
 #define CTRLBUS_OK 0
 /* A NULL pointer, an impossible option, or a struct whose fields contradict each other (for
@@ -60,6 +70,10 @@ extern "C" {
 /* A short, constant, English name of an error code ("format", "unsupported", ...), or "unknown".
  * Returns a pointer to a string constant. ISR-safe. Cost: O(1). */
 const char *ctrlbus_error_name(int32_t error);
+
+/* The function CTRLBUS_CONFIG_CHECK() calls (ctrlbus/ctrlbus_config.h): the library defines it
+ * under the name of the switches it was compiled with. Returns 0. ISR-safe. Cost: O(1). */
+int32_t CTRLBUS_CONFIG_SYMBOL(void);
 
 #ifdef __cplusplus
 }

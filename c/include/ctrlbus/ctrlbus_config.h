@@ -99,13 +99,90 @@
 #endif
 #endif
 
+/* Where the application's constant answers live: the GET_BASE_CONF answer (config->base_conf,
+ * 264 bytes on the wire) and the 0x21 blob (config->binary_config). 0 (default): ordinary memory.
+ * 1: program memory that takes its own read instruction, such as an AVR's flash (PROGMEM): the
+ * stack then reads them only through CTRLBUS_READ_CONST(dst, src, size), which is memcpy_P on AVR
+ * (avr-libc) and memcpy elsewhere; define it when compiling the library for another such part.
+ * On an ATmega328P this keeps the GET_BASE_CONF answer out of the 2 KB of RAM (c/ports/README.md:
+ * the Uno's minimal base builds so). Only on a little-endian CPU (refused at compile time
+ * otherwise). Not a feature switch: it changes no behaviour, and Zephyr, whose targets read const
+ * data in place, has no option for it. Size effect on the Uno's minimal base (avr-gcc, LTO):
+ * 178 B of code (the answer's writer for that memory), and the answer's 264 B move from RAM
+ * to flash. */
+#ifndef CTRLBUS_CONST_IN_FLASH
+#define CTRLBUS_CONST_IN_FLASH 0
+#endif
+
 /* The profile a config whose `profile` is left zero gets (ctrlbus_base_profile_t, base.h). Define
  * it for the whole build, e.g. -DCTRLBUS_DEFAULT_PROFILE=CTRLBUS_PROFILE_SDK2020, to build a
- * firmware for the vendor's 2020 master SDK without touching its code (c/firmware builds its
+ * firmware for the vendor's 2020 master SDK without touching its code (c/ports builds mps2-an385's
  * sdk2020 image so). Zero is CTRLBUS_PROFILE_REFERENCE, so with the sdk2020 default the reference
  * profile cannot be chosen at run time. Size effect: none. */
 #ifndef CTRLBUS_DEFAULT_PROFILE
 #define CTRLBUS_DEFAULT_PROFILE CTRLBUS_PROFILE_REFERENCE
 #endif
+
+/* The effective switches, checked at link time. The library defines one function whose name spells
+ * the switches it was compiled with, e.g. ctrlbus_config_h1_q1_l1_p1_a1_m1_d2_f0 (health, command
+ * queue, limits, sdk2020, conf_adv, master codecs: 0 or 1; the decoder level: 0, 1 or 2; const in
+ * flash: 0 or 1), and
+ * CTRLBUS_CONFIG_CHECK(), a statement for the firmware's start-up code, calls the one this
+ * translation unit's switches name. When the library archive was built with other switches (a
+ * config header not applied, a -D missing in one build), the link fails with "undefined reference
+ * to ctrlbus_config_...", naming the switches the firmware expected. Cost: a call to a function
+ * that returns 0 (a few bytes); nothing at all when not used (its own section). */
+#if CTRLBUS_CONFIG_HEALTH
+#define CTRLBUS_CONFIG_BIT_H_ 1
+#else
+#define CTRLBUS_CONFIG_BIT_H_ 0
+#endif
+#if CTRLBUS_CONFIG_COMMAND_QUEUE
+#define CTRLBUS_CONFIG_BIT_Q_ 1
+#else
+#define CTRLBUS_CONFIG_BIT_Q_ 0
+#endif
+#if CTRLBUS_CONFIG_LIMITS
+#define CTRLBUS_CONFIG_BIT_L_ 1
+#else
+#define CTRLBUS_CONFIG_BIT_L_ 0
+#endif
+#if CTRLBUS_CONFIG_PROFILE_SDK2020
+#define CTRLBUS_CONFIG_BIT_P_ 1
+#else
+#define CTRLBUS_CONFIG_BIT_P_ 0
+#endif
+#if CTRLBUS_CONFIG_CONF_ADV
+#define CTRLBUS_CONFIG_BIT_A_ 1
+#else
+#define CTRLBUS_CONFIG_BIT_A_ 0
+#endif
+#if CTRLBUS_CONFIG_MASTER_CODECS
+#define CTRLBUS_CONFIG_BIT_M_ 1
+#else
+#define CTRLBUS_CONFIG_BIT_M_ 0
+#endif
+#if CTRLBUS_DECODER_FAST == 0
+#define CTRLBUS_CONFIG_BIT_D_ 0
+#elif CTRLBUS_DECODER_FAST == 1
+#define CTRLBUS_CONFIG_BIT_D_ 1
+#else
+#define CTRLBUS_CONFIG_BIT_D_ 2
+#endif
+#if CTRLBUS_CONST_IN_FLASH
+#define CTRLBUS_CONFIG_BIT_F_ 1
+#else
+#define CTRLBUS_CONFIG_BIT_F_ 0
+#endif
+#define CTRLBUS_CONFIG_NAME_(h, q, l, p, a, m, d, f)                                               \
+    ctrlbus_config_h##h##_q##q##_l##l##_p##p##_a##a##_m##m##_d##d##_f##f
+#define CTRLBUS_CONFIG_NAME(h, q, l, p, a, m, d, f) CTRLBUS_CONFIG_NAME_(h, q, l, p, a, m, d, f)
+/* The name of the function for this translation unit's switches. */
+#define CTRLBUS_CONFIG_SYMBOL                                                                      \
+    CTRLBUS_CONFIG_NAME(CTRLBUS_CONFIG_BIT_H_, CTRLBUS_CONFIG_BIT_Q_, CTRLBUS_CONFIG_BIT_L_,       \
+                        CTRLBUS_CONFIG_BIT_P_, CTRLBUS_CONFIG_BIT_A_, CTRLBUS_CONFIG_BIT_M_,       \
+                        CTRLBUS_CONFIG_BIT_D_, CTRLBUS_CONFIG_BIT_F_)
+/* Links only against a library built with the same switches (see above). Main loop, once. */
+#define CTRLBUS_CONFIG_CHECK() ((void)CTRLBUS_CONFIG_SYMBOL())
 
 #endif

@@ -52,7 +52,7 @@ from ctrlbus.errors import (
     UnsupportedMessageError,
     UsageError,
 )
-from ctrlbus.frame import DecoderEvent, DecoderStats, EventKind, Frame, StreamDecoder
+from ctrlbus.frame import FLAG_LONG, DecoderEvent, DecoderStats, EventKind, Frame, StreamDecoder
 from ctrlbus.kinematics import wheel_speeds_from_velocity
 from ctrlbus.link import Link
 from ctrlbus.messages import (
@@ -864,10 +864,13 @@ class BaseStack:
             self.health.clear(REFERENCE_LOW_BATTERY_CODE)
         self._startup_battery_reported = startup
 
-        def serve(item: Frame | int) -> bytes:
+        def serve(item: Frame | int | bytes) -> bytes:
             answer = bytearray()
             if isinstance(item, int):
                 self._send_error(item, answer)
+            elif isinstance(item, bytes):  # SYNC/ECHO, sent back from the receiver's buffer
+                self._requests["SYNC" if item[2 + (item[0] == FLAG_LONG)] == Cmd.SYNC else "ECHO"] += 1
+                self._send(item, answer)
             else:
                 self._handle_frame(item, now, answer)
             return bytes(answer)

@@ -17,6 +17,7 @@ the reader then stops at a final record that is not complete yet, reports its si
 
 from __future__ import annotations
 
+import contextlib
 import struct
 import threading
 from collections.abc import Iterator
@@ -105,6 +106,9 @@ class CaptureWriter:
         self._owns_stream = owns_stream
         self._lock = threading.Lock()
         self._closed = False
+        self._failed = False  # a write failed (a full disk): what is buffered cannot be written
+        # The file's name, for messages about it (None for a stream that is not a named file).
+        self.path: str | None = str(stream.name) if isinstance(getattr(stream, "name", None), str) else None
         stream.write(_GLOBAL_HEADER.pack(MAGIC_MICROSECONDS, 2, 4, 0, 0, SNAPLEN, LINKTYPE_USER0))
         if flush:
             stream.flush()
@@ -130,13 +134,17 @@ class CaptureWriter:
         with self._lock:
             if self._closed:
                 raise CaptureError("the capture is closed")
-            for start in range(0, len(data), MAX_CHUNK):
-                piece = bytes(data[start : start + MAX_CHUNK])
-                size = len(piece) + 1
-                self._stream.write(_RECORD_HEADER.pack(seconds, microseconds, size, size))
-                self._stream.write(bytes([side]) + piece)
-            if self._flush and data:
-                self._stream.flush()
+            try:
+                for start in range(0, len(data), MAX_CHUNK):
+                    piece = bytes(data[start : start + MAX_CHUNK])
+                    size = len(piece) + 1
+                    self._stream.write(_RECORD_HEADER.pack(seconds, microseconds, size, size))
+                    self._stream.write(bytes([side]) + piece)
+                if self._flush and data:
+                    self._stream.flush()
+            except OSError:
+                self._failed = True
+                raise
 
     def flush(self) -> None:
         with self._lock:
@@ -147,6 +155,13 @@ class CaptureWriter:
             if self._closed:
                 return
             self._closed = True
+            if self._failed:
+                # The write's error was raised; flushing the same bytes again would only raise it
+                # once more (from close, hiding the first report).
+                if self._owns_stream:
+                    with contextlib.suppress(OSError):
+                        self._stream.close()
+                return
             self._stream.flush()
             if self._owns_stream:
                 self._stream.close()

@@ -8,7 +8,7 @@
 - `--base sim` (default): the Python simulated base, in this process, serving a real pty; the
   dashboard also shows the simulator's ground truth (room, dock, beacons, true pose).
 - `--base c`: the C host base, build/c/examples/posix_base/posix_base --pty, as a child process.
-- `--base qemu`: the Cortex-M3 firmware under qemu-system-arm, its UART0 on a pty.
+- `--base qemu`: the Cortex-M3 firmware (c/ports/mps2_an385) under qemu-system-arm, its UART0 on a pty.
 
 The Core emulator opens the base's pty like any serial port and talks the real protocol over it.
 Ctrl-C or SIGTERM stops everything: the Core, the dashboard, the base; child processes run in
@@ -59,7 +59,7 @@ __all__ = [
 
 REPO_ROOT = Path(__file__).resolve().parents[3]
 DEFAULT_C_BASE = REPO_ROOT / "build" / "c" / "examples" / "posix_base" / "posix_base"
-DEFAULT_FIRMWARE = REPO_ROOT / "build" / "firmware" / "ctrlbus-base.elf"
+DEFAULT_FIRMWARE = REPO_ROOT / "build" / "ports" / "mps2_an385" / "simbase-qemu.elf"
 PTY_PATTERN = re.compile(r"(/dev/(?:pts/\d+|tty[A-Za-z0-9]+))")
 CHILD_START_TIMEOUT_S = 15.0
 CHILD_STOP_TIMEOUT_S = 3.0

@@ -398,8 +398,10 @@ def fields_text(context, fields):
 
 class Stream:
     '''One direction's bytes to frames and events, rules D1-D5. Bytes come in one at a time as
-    (value, ss, es, time); `feed` returns what they completed: ('frame', bytes) and ('event',
-    kind, first, last, extra) with `bytes` a list of (value, ss, es).'''
+    (value, ss, es) with a time (any unit: the decoder passes sample numbers, and the timeout in
+    samples); `feed` returns what they completed: ('frame', bytes) and ('event', kind, first,
+    last, extra) with `bytes` a list of (value, ss, es). `idle` is told the time while the line
+    is idle, so that the inter-byte timeout fires without a next byte.'''
 
     def __init__(self, max_frame, timeout):
         self.max_frame, self.timeout = max_frame, timeout
@@ -410,13 +412,18 @@ class Stream:
         self.last_time = None
 
     def feed(self, byte, time):
+        out = self.idle(time)
+        self.last_time = time
+        self.pending.append(byte)
+        self.scan(out, flush=False)
+        return out
+
+    def idle(self, time):
+        '''The time is now `time`: a candidate older than the timeout fails (D5).'''
         out = []
         if self.pending and self.timeout and time is not None and self.last_time is not None \
                 and time - self.last_time > self.timeout:
             self.scan(out, flush=True)
-        self.last_time = time
-        self.pending.append(byte)
-        self.scan(out, flush=False)
         return out
 
     def fail(self, out, kind, size, span, extra=None):
@@ -523,24 +530,39 @@ class Decoder(srd.Decoder):
     def metadata(self, key, value):
         if key == srd.SRD_CONF_SAMPLERATE:
             self.samplerate = value
+            self.set_timeout()
 
     def start(self):
         self.out_ann = self.register(srd.OUTPUT_ANN)
-        timeout = float(self.options['timeout_ms']) / 1000.0
         max_frame = int(self.options['max_frame'])
-        self.streams = (Stream(max_frame, timeout), Stream(max_frame, timeout))
+        self.streams = (Stream(max_frame, 0), Stream(max_frame, 0))
+        self.set_timeout()
         self.request_line = 0 if self.options['requests'] == 'rx' else 1
+
+    def set_timeout(self):
+        '''Time is counted in sample numbers (exact, and what sigrok gives): the timeout in
+        samples needs the sample rate; without one it stays off.'''
+        if self.streams is None or not self.samplerate:
+            return
+        samples = float(self.options['timeout_ms']) * self.samplerate / 1000.0
+        for stream in self.streams:
+            stream.timeout = samples
 
     def put_ann(self, side, kind, ss, es, texts):
         self.put(ss, es, self.out_ann, [side * 3 + kind, texts])
 
     def decode(self, ss, es, data):
         ptype, rxtx, pdata = data
-        if ptype != 'DATA':
-            return
         side = CORE if rxtx == self.request_line else BASE
-        time = ss / float(self.samplerate) if self.samplerate else None
-        for item in self.streams[side].feed((pdata[0], ss, es), time):
+        if ptype == 'IDLE':
+            # uart reports each frame time of idle line: the timeout fires on idle time, not
+            # only when a next byte comes (which never happens at the end of a recording).
+            items = self.streams[side].idle(es)
+        elif ptype == 'DATA':
+            items = self.streams[side].feed((pdata[0], ss, es), ss)
+        else:
+            return
+        for item in items:
             if item[0] == 'frame':
                 self.show_frame(side, item[1])
             else:
@@ -616,6 +638,8 @@ class Decoder(srd.Decoder):
                 error = 'unpaired'
                 guess = guess_request(payload)
                 if guess is not None:
+                    # read by its size, as `ctrlbus decode` does, and said to be a guess
+                    label += ' (a guess: to %s)' % guess
                     context = 'OK to %s' % guess
                     fields = answer_fields(guess, cmd, payload)
             else:

@@ -48,7 +48,7 @@ static int32_t connect_info(void *, ctrlbus_connect_base_answer_t *out)
 
 // GET_BASE_CONF is a constant the stack streams: round, 170 mm radius, two-wheel differential,
 // no sensors, no bumpers.
-static const ctrlbus_get_base_conf_answer_t base_conf = {0, 170UL * 256, 0, 0, {}, 0, {}};
+static const ctrlbus_get_base_conf_answer_t base_conf = {0, (uint32_t)CTRLBUS_Q8(170), 0, 0, {}, 0, {}};
 
 static int32_t status(void *, ctrlbus_get_base_status_answer_t *out)
 {

@@ -21,6 +21,8 @@ from ctrlbus.messages import Cmd, ErrorCode, Request, Response
 __all__ = [
     "CHECKS",
     "FALSE_FLAG_GARBAGE",
+    "GARBAGE_LENGTHS",
+    "LONG_GARBAGE",
     "OVERSIZE_PROBE",
     "PLAIN_GARBAGE",
     "STATUS_REQUEST",
@@ -31,6 +33,9 @@ __all__ = [
 SMALL_FRAME = 64  # a base refusing a SYNC/ECHO longer than this as oversize has a small buffer
 # Garbage without any byte that could start a frame, then a request: one ERROR 0x0010 and the answer.
 PLAIN_GARBAGE = bytes.fromhex("AA 55 AA 55 00 FF 13 37")
+# Garbage with no 0x10 or 0x50 in it; check 17 sends each length of it in front of a request.
+LONG_GARBAGE = PLAIN_GARBAGE + bytes.fromhex("A5 5A 01 02 03 04 FE EF")
+GARBAGE_LENGTHS = range(1, len(LONG_GARBAGE) + 1)
 # Garbage with false frame starts: 10 FF (a standard frame of 258 bytes that never completes),
 # 50 40 1F (a long frame of 8004 bytes: oversize) and 10 03 F8 (a short frame whose checksum
 # fails and whose span covers the real request's flag). A §7 decoder recovers the request after
@@ -529,39 +534,80 @@ def _is_ok(frame: Frame) -> bool:
     return frame.cmd == Response.OK
 
 
+def _lengths_text(lengths: list[int]) -> str:
+    """'1-2, 7' for [1, 2, 7]."""
+    runs: list[list[int]] = []
+    for length in lengths:
+        if runs and runs[-1][-1] == length - 1:
+            runs[-1].append(length)
+        else:
+            runs.append([length])
+    return ", ".join(f"{run[0]}-{run[-1]}" if len(run) > 1 else str(run[0]) for run in runs)
+
+
 def check_garbage(ctx: CheckContext) -> None:
     timeout_s = ctx.options.timeout_s
     wait_s = ctx.options.wait_s
     prober = ctx.prober
 
-    # A: plain garbage, then a request in the same burst.
-    prober.drain()
-    sent_at = prober.send(PLAIN_GARBAGE + STATUS_REQUEST, "8 garbage bytes, then GET_BASE_STATUS")
-    before, answer, latency = _until(ctx, sent_at, wait_s, _is_ok)
-    codes = [error_code_of(frame) for frame in before]
-    reports = sum(1 for code in codes if is_line_fault(code, ErrorCode.NOT_SYNCED))
-    if answer is None:
-        dropped = [code for code in codes if is_line_fault(code, 0x80) and code is not None]
+    # A: plain garbage of every length from 1 to 16, each followed by a request in the same burst.
+    # Whether the reference answers, drops with ERROR 0x0090 or drops silently depends on the
+    # length (the race between its receive interrupt and its main loop, protocol.md §8.5).
+    reports = 0
+    answered: list[int] = []
+    marked: list[int] = []  # dropped, and an ERROR with 0x0080 said so
+    marking_codes: set[int] = set()
+    silent: list[int] = []  # dropped, only garbage reports came back
+    for length in GARBAGE_LENGTHS:
+        prober.drain()
+        garbage = LONG_GARBAGE[:length]
+        sent_at = prober.send(
+            garbage + STATUS_REQUEST,
+            f"{length} garbage byte{'s' if length > 1 else ''}, then GET_BASE_STATUS",
+        )
+        before, answer, _ = _until(ctx, sent_at, wait_s, _is_ok)
+        bytes_text = f"{length} garbage byte{'s' if length > 1 else ''}"
+        wrong = [frame for frame in before if not is_line_fault(error_code_of(frame))]
+        if wrong:
+            ctx.fail(f"GET_BASE_STATUS right after {bytes_text} was answered {_got(wrong[0])}")
+            return
+        codes = [error_code_of(frame) for frame in before]
+        reports += sum(1 for code in codes if is_line_fault(code, ErrorCode.NOT_SYNCED))
+        if answer is not None:
+            answered.append(length)
+            continue
         again, _ = _answer_as_core(ctx, STATUS_REQUEST, "GET_BASE_STATUS again, as a Core resends")
-        answered_again = again is not None and again.cmd == Response.OK
-        lost = f"GET_BASE_STATUS right after 8 garbage bytes was not answered within {wait_s * 1000:.0f} ms"
-        if not answered_again:
-            ctx.fail(f"{lost}, nor when sent again")
-        elif dropped:
-            ctx.warn(
-                f"{lost}: it was dropped and reported as ERROR 0x{dropped[-1]:04X} "
-                f"({line_fault_bits(dropped[-1])}), and answered when sent again: {REFERENCE_RESENDS} "
-                "(§11.6 [line-faults])"
-            )
-        else:
+        if again is None or again.cmd != Response.OK:
+            got = "nothing" if again is None else _got(again)
             ctx.fail(
-                f"{lost}, and no ERROR said it was dropped ({reports} x garbage reported): a Core notices "
-                "only at its request timeout; the reference answers such a request with 0x0090 at once"
+                f"GET_BASE_STATUS right after {bytes_text} was not answered within {wait_s * 1000:.0f} ms, "
+                f"and when sent again it was answered {got}"
             )
+            return
+        marks = {code for code in codes if code is not None and is_line_fault(code, 0x80)}
+        marking_codes |= marks
+        (marked if marks else silent).append(length)
+    if marked or silent:
+        how = []
+        if marked:
+            shown = ", ".join(f"0x{code:04X}" for code in sorted(marking_codes))
+            how.append(f"after {_lengths_text(marked)} garbage bytes reported dropped (ERROR {shown})")
+        if silent:
+            how.append(
+                f"after {_lengths_text(silent)} garbage bytes dropped without a word (only ERROR 0x0010 "
+                "came back: the Core finds out at its request timeout)"
+            )
+        at_once = f"; answered at once after {_lengths_text(answered)} garbage bytes" if answered else ""
+        ctx.warn(
+            f"GET_BASE_STATUS right behind garbage was dropped {'; '.join(how)}, and answered when sent "
+            f"again: {REFERENCE_RESENDS} (§11.6 [line-faults]){at_once}"
+        )
     elif reports == 0:
         ctx.warn("the garbage was not reported with ERROR 0x0010 (§8.1 [base-events])")
-    elif reports > 1:
-        ctx.note(f"{reports} x ERROR 0x0010 for one garbage gap (the reference sends several; ctrlbus one)")
+    elif reports > len(GARBAGE_LENGTHS):
+        ctx.note(
+            f"{reports} x ERROR 0x0010 for {len(GARBAGE_LENGTHS)} garbage gaps (the reference sends several)"
+        )
 
     # B: false frame starts with bogus lengths, then the request.
     prober.drain(0.05)

@@ -28,12 +28,14 @@ __all__ = [
 # (an optional layer not installed) is skipped rather than breaking the whole command.
 SUBCOMMANDS: tuple[str, ...] = (
     "core",
+    "ros2",
     "sim",
     "check",
     "decode",
     "spy",
     "capture",
     "replay",
+    "record",
     "config",
     "demo",
     "completion",

@@ -131,7 +131,11 @@ def record(
                 break
         data = link.read(wait)
         if data:
-            writer.write(direction, data, time.time())
+            try:
+                writer.write(direction, data, time.time())
+            except OSError as exc:  # a full disk: the message names the file
+                where = getattr(writer, "path", None) or "the capture"
+                raise UsageError(f"cannot write {where}: {exc.strerror or exc}") from None
             records += 1
             size += len(data)
     return records, size
@@ -235,7 +239,12 @@ def run_tap(args: argparse.Namespace, duration: float | None) -> int:
     core, base = open_sides(endpoints["core"], endpoints["base"], args.baud)
     try:
         tap = Tap(core, base, max_frame=max_frame)
-        printer = Printer(as_json=args.json, color=use_color(args.color), time_origin=time.time())
+        printer = Printer(
+            as_json=args.json,
+            color=use_color(args.color),
+            time_origin=time.time(),
+            gone_note=f"still recording to {args.output}",
+        )
         run_session(tap, annotator, printer, capture_path=args.output, duration=duration)
         raise_failure(tap)
     finally:

@@ -31,6 +31,7 @@ from ctrlbus.checker import (
 )
 from ctrlbus.checker.framework import DEFAULT_LATENCY_COUNT, DEFAULT_TIMEOUT_S
 from ctrlbus.cli.common import add_baud_argument, add_port_argument, write_output
+from ctrlbus.cli.completion_cmd import offer_values
 from ctrlbus.errors import UsageError
 from ctrlbus.ports import open_link
 
@@ -64,9 +65,10 @@ def register(subparsers: Any) -> None:
     add_baud_argument(parser)
     parser.add_argument("--json", metavar="FILE", help="write the whole run as JSON ('-' for stdout)")
     parser.add_argument("--junit", metavar="FILE", help="write JUnit XML (one test case per check) for CI")
-    parser.add_argument(
+    only = parser.add_argument(
         "--only", metavar="N,M", help="run only these checks: numbers, ranges (5-7) or names (see --list)"
     )
+    offer_values(only, [check.name for check in CHECKS] + [str(check.number) for check in CHECKS])
     parser.add_argument(
         "--timeout-ms",
         default=str(round(DEFAULT_TIMEOUT_S * 1000)),

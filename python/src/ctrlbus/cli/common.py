@@ -21,6 +21,7 @@ from ctrlbus.link import DEFAULT_BAUD, Link, PtyLink, TcpServerLink, parse_host_
 from ctrlbus.ports import open_link
 
 __all__ = [
+    "BOM",
     "DEFAULT_BAUD",
     "add_baud_argument",
     "add_color_argument",
@@ -33,6 +34,8 @@ __all__ = [
     "endpoint_address",
     "format_hex",
     "hex_or_binary",
+    "hex_token_bytes",
+    "hex_token_problem",
     "open_endpoint",
     "parse_hex_text",
     "parse_host_port",
@@ -122,7 +125,8 @@ def add_dashboard_arguments(parser: argparse.ArgumentParser) -> None:
 # Hex text as people paste it: pairs or runs of hex digits, optionally 0x-prefixed, separated by
 # spaces, newlines, commas or colons; '#' starts a comment that runs to the end of the line.
 _HEX_TOKEN = re.compile(r"(?:0[xX])?([0-9A-Fa-f]+)")
-_NOT_SEPARATOR = re.compile(r"[^\s,:]+")
+_NOT_SEPARATOR = re.compile(r"[^\s,:]+")  # \s: any Unicode space, a no-break space included
+BOM = "\ufeff"  # a byte order mark, as editors put at the start of UTF-8 text
 
 
 def read_input_bytes(path: str) -> bytes:
@@ -132,21 +136,41 @@ def read_input_bytes(path: str) -> bytes:
     return Path(path).read_bytes()
 
 
+def hex_token_bytes(token: str) -> bytes | None:
+    """The bytes one hex token spells ("10", "0x1", "F830DA"), each token on its own: one digit
+    is one byte, an even number of digits that many halves; None for anything else (an odd number
+    of digits past one included: digits never pair across tokens, so "0x10 0x1 0x0" cannot
+    silently become 10 10)."""
+    match = _HEX_TOKEN.fullmatch(token)
+    if match is None:
+        return None
+    digits = match.group(1)
+    if len(digits) == 1:
+        return bytes([int(digits, 16)])
+    if len(digits) % 2:
+        return None
+    return bytes.fromhex(digits)
+
+
+def hex_token_problem(token: str) -> str:
+    """Why `token` is not a hex token (for an error message)."""
+    if _HEX_TOKEN.fullmatch(token):
+        return f"not hex text: {token!r} has an odd number of digits (a byte is one or two)"
+    return f"not hex text: {token!r}"
+
+
 def parse_hex_text(text: str) -> bytes:
-    """Bytes from hex text ("10 02 F8 30 DA", "0x10,0x02", "1002f830da"); UsageError naming the
-    line and column of anything else."""
-    digits: list[str] = []
-    for line_number, line in enumerate(text.splitlines(), start=1):
+    """Bytes from hex text ("10 02 F8 30 DA", "0x10,0x02", "1002f830da", "0x1 0x0"); a leading
+    byte order mark is ignored; UsageError naming the line and column of anything else."""
+    out = bytearray()
+    for line_number, line in enumerate(text.removeprefix(BOM).splitlines(), start=1):
         for token in _NOT_SEPARATOR.finditer(line.split("#", 1)[0]):
-            match = _HEX_TOKEN.fullmatch(token.group())
-            if match is None:
+            spelled = hex_token_bytes(token.group())
+            if spelled is None:
                 where = f"line {line_number} column {token.start() + 1}"
-                raise UsageError(f"not hex text: {token.group()!r} at {where}")
-            digits.append(match.group(1))
-    joined = "".join(digits)
-    if len(joined) % 2:
-        raise UsageError(f"hex text has an odd number of digits ({len(joined)})")
-    return bytes.fromhex(joined)
+                raise UsageError(f"{hex_token_problem(token.group())} at {where}")
+            out += spelled
+    return bytes(out)
 
 
 def hex_or_binary(data: bytes) -> bytes:

@@ -5,8 +5,12 @@ it knows every subcommand, option and choice the installed version has.
     source <(ctrlbus completion bash)              # in ~/.bashrc
     source <(ctrlbus completion zsh)               # in ~/.zshrc (zsh runs the bash script)
 
-Options that take a value complete their choices when they have them, else file names (ports such
-as /dev/ttyUSB0 are files too).
+Options that take a value complete their choices when they have them (argparse `choices`, or the
+values given with `offer_values` where the option checks them itself), else file names (ports such
+as /dev/ttyUSB0 are files too). `--opt=value` completes as `--opt value` does; names with spaces
+stay whole. The zsh script is the bash one behind zsh's bashcompinit, so the script keeps to what
+both shells read alike: associative array keys are looked up through a variable, never quoted in
+the subscript (zsh would take the quotes as part of the key).
 """
 
 from __future__ import annotations
@@ -14,9 +18,21 @@ from __future__ import annotations
 import argparse
 import shlex
 import sys
+from collections.abc import Iterable
 from typing import Any
 
-__all__ = ["SHELLS", "bash_script", "register"]
+__all__ = ["SHELLS", "bash_script", "offer_values", "register"]
+
+# The attribute that carries an option's completion values when argparse has no `choices` for it.
+_COMPLETION_VALUES = "ctrlbus_completion_values"
+
+
+def offer_values(action: argparse.Action, values: Iterable[str]) -> argparse.Action:
+    """Complete `action`'s value with `values`, for an option that checks its value itself (its
+    own error message) rather than through argparse's `choices`. Returns `action`."""
+    setattr(action, _COMPLETION_VALUES, tuple(values))
+    return action
+
 
 SHELLS = ("bash", "zsh")
 
@@ -79,7 +95,8 @@ def bash_script(parser: argparse.ArgumentParser) -> str:
         for action in sub._actions:
             if not action.option_strings or action.nargs == 0:
                 continue
-            choices = " ".join(str(choice) for choice in action.choices) if action.choices else "@files"
+            offered = getattr(action, _COMPLETION_VALUES, None) or action.choices
+            choices = " ".join(str(choice) for choice in offered) if offered else "@files"
             for option in action.option_strings:
                 values.append(f"  [{shlex.quote(f'{path}|{option}')}]={shlex.quote(choices)}")
     function = f"_{parser.prog.replace('-', '_')}_complete"
@@ -93,27 +110,40 @@ declare -gA _ctrlbus_words=(
 declare -gA _ctrlbus_values=(
 {chr(10).join(values)}
 )
+_ctrlbus_reply() {{
+  # COMPREPLY from compgen's lines: a name with spaces stays one candidate
+  local line
+  COMPREPLY=()
+  while IFS= read -r line; do COMPREPLY+=("$line"); done < <(compgen "$@")
+}}
 {function}() {{
-  local cur=${{COMP_WORDS[COMP_CWORD]}} prev=${{COMP_WORDS[COMP_CWORD-1]}} path={parser.prog} word i
+  local cur=${{COMP_WORDS[COMP_CWORD]}} prev=${{COMP_WORDS[COMP_CWORD-1]}} path={parser.prog} word i key
+  # bash splits "--color=al" into "--color" "=" "al" (and "--color=" into "--color" "=")
+  if [[ $cur == = && $prev == -* ]]; then
+    cur=""
+  elif [[ $prev == = ]] && ((COMP_CWORD >= 2)); then
+    prev=${{COMP_WORDS[COMP_CWORD-2]}}
+  fi
   for ((i = 1; i < COMP_CWORD; i++)); do
     word=${{COMP_WORDS[i]}}
     if [[ " ${{_ctrlbus_children[$path]-}} " == *" $word "* ]]; then
       path="$path $word"
     fi
   done
-  local values=${{_ctrlbus_values["$path|$prev"]-}}
+  key="$path|$prev"
+  local values=${{_ctrlbus_values[$key]-}}
   if [[ -n $values ]]; then
     if [[ $values == @files ]]; then
-      COMPREPLY=($(compgen -f -- "$cur"))
+      _ctrlbus_reply -f -- "$cur"
     else
-      COMPREPLY=($(compgen -W "$values" -- "$cur"))
+      _ctrlbus_reply -W "$values" -- "$cur"
     fi
     return 0
   fi
   if [[ $cur == -* || -n ${{_ctrlbus_children[$path]-}} ]]; then
-    COMPREPLY=($(compgen -W "${{_ctrlbus_words[$path]-}}" -- "$cur"))
+    _ctrlbus_reply -W "${{_ctrlbus_words[$path]-}}" -- "$cur"
   else
-    COMPREPLY=($(compgen -f -- "$cur"))
+    _ctrlbus_reply -f -- "$cur"
   fi
 }}
 complete -o filenames -F {function} {parser.prog}

@@ -2,7 +2,7 @@
 """`ctrlbus decode`: show what a byte stream or a capture says, frame by frame.
 
     ctrlbus decode [FILE|-] [--json] [--direction core|base] [--color auto|always|never]
-                   [--format auto|capture|hex|binary] [--timeout-ms N] [--max-frame N]
+                   [--format auto|capture|hex|binary] [--strict] [--timeout-ms N] [--max-frame N]
 
 The input is recognised by its content: a capture (pcap, docs/capture-format.md), hex text, or raw
 bytes. Every frame is printed with its offset (and, for a capture, its time and direction), its
@@ -34,12 +34,14 @@ from ctrlbus.annotate import (
 )
 from ctrlbus.capture import CaptureReader, Direction, looks_like_capture
 from ctrlbus.cli.common import (
-    _HEX_TOKEN,
     _NOT_SEPARATOR,
+    BOM,
     add_color_argument,
     add_decoder_arguments,
     add_direction_argument,
     decoder_settings,
+    hex_token_bytes,
+    hex_token_problem,
     use_color,
 )
 from ctrlbus.errors import UsageError
@@ -80,7 +82,6 @@ _WAITING_LIMIT = 1024
 _WAITING_BYTES_LIMIT = 1 << 18
 _TRAILING_TOKEN = re.compile(_NOT_SEPARATOR.pattern + r"\Z")
 _PCAPNG_MAGIC = b"\x0a\x0d\x0d\x0a"
-_TEXT_CONTROLS = frozenset("\t\n\r\f\v")
 
 
 def register(subparsers: Any) -> None:
@@ -107,6 +108,12 @@ def register(subparsers: Any) -> None:
         default="auto",
         help="how to read the input (default auto: recognise a capture, then hex text, else raw bytes)",
     )
+    parser.add_argument(
+        "--strict",
+        action="store_true",
+        help="exit 2 when the input is damaged (a capture cut inside its last record, as a full "
+        "disk leaves it); without it that is a warning and the exit code is 0",
+    )
     add_decoder_arguments(parser, timeout_ms=DEFAULT_TIMEOUT_MS)
     parser.set_defaults(func=run)
 
@@ -121,15 +128,18 @@ def detect_format(data: bytes, *, complete: bool = True) -> str:
         text = codecs.getincrementaldecoder("utf-8")().decode(data, final=complete)
     except UnicodeDecodeError:
         return "binary"
-    if all(char.isprintable() or char in _TEXT_CONTROLS for char in text):
+    # A byte order mark opening the text and Unicode spaces (a no-break space pasted from a web
+    # page) are text too, as --format hex reads them.
+    if all(char.isprintable() or char.isspace() for char in text.removeprefix(BOM)):
         return "hex"
     return "binary"
 
 
 class _HexText:
     """Hex text read piece by piece (the rules of parse_hex_text: tokens between whitespace, commas
-    and colons, '#' comments to the end of the line, an even number of digits in all). Holds at
-    most one piece and one token whatever the input's size."""
+    and colons, '#' comments to the end of the line, each token one or an even number of digits,
+    a byte order mark at the start ignored). Holds at most one piece and one token whatever the
+    input's size."""
 
     def __init__(self, name: str) -> None:
         self._name = name
@@ -138,14 +148,16 @@ class _HexText:
         self._in_comment = False  # the rest of the current line is a comment
         self._line = 1
         self._column = 1  # column of _rest's first character
-        self._odd_digit = ""  # a digit waiting for its pair (digits pair across tokens)
-        self._digits = 0
+        self._started = False  # the first character was seen (a byte order mark may open the text)
 
     def feed(self, data: bytes, *, final: bool = False) -> bytes:
         try:
             text = self._rest + self._text.decode(data, final=final)
         except UnicodeDecodeError:
             raise UsageError(f"{self._name} is not text, so not hex text (try --format binary)") from None
+        if not self._started and text:
+            self._started = True
+            text = text.removeprefix(BOM)
         out = bytearray()
         position = 0
         while position < len(text):
@@ -179,11 +191,6 @@ class _HexText:
                 self._newline()
             position = stop + 1
         self._rest = ""
-        if final and self._odd_digit:
-            raise UsageError(
-                f"{self._name}: hex text has an odd number of digits ({self._digits}) "
-                "(neither a capture nor hex text; --format binary reads raw bytes)"
-            )
         return bytes(out)
 
     def _newline(self) -> None:
@@ -192,18 +199,14 @@ class _HexText:
 
     def _parse(self, part: str, out: bytearray) -> None:
         for token in _NOT_SEPARATOR.finditer(part):
-            match = _HEX_TOKEN.fullmatch(token.group())
-            if match is None:
+            spelled = hex_token_bytes(token.group())
+            if spelled is None:
                 where = f"line {self._line} column {self._column + token.start()}"
                 raise UsageError(
-                    f"{self._name}: not hex text: {token.group()!r} at {where} "
+                    f"{self._name}: {hex_token_problem(token.group())} at {where} "
                     "(neither a capture nor hex text; --format binary reads raw bytes)"
                 )
-            digits = self._odd_digit + match.group(1)
-            self._digits += len(match.group(1))
-            even = len(digits) - len(digits) % 2
-            out += bytes.fromhex(digits[:even])
-            self._odd_digit = digits[even:]
+            out += spelled
 
 
 class DecodeStream:
@@ -402,7 +405,9 @@ def run(args: argparse.Namespace) -> int:
     finally:
         if source is not sys.stdin.buffer:
             source.close()
-    return 0
+    for warning in decoded.warnings:
+        print(f"ctrlbus decode: {'error' if args.strict else 'warning'}: {warning}", file=sys.stderr)
+    return 2 if args.strict and decoded.warnings else 0
 
 
 def _print_decoded(decoded: DecodeStream, sender: Direction | None, *, as_json: bool, color: bool) -> None:
@@ -428,6 +433,3 @@ def _print_decoded(decoded: DecodeStream, sender: Direction | None, *, as_json: 
     except BrokenPipeError:
         # The reader went away (decode ... | head): not an error of ours.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return
-    for warning in decoded.warnings:
-        print(f"ctrlbus decode: warning: {warning}", file=sys.stderr)

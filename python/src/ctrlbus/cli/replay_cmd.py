@@ -1,12 +1,13 @@
 # SPDX-License-Identifier: MIT
 """`ctrlbus replay`: play one side of a capture into a port, with the original timing.
 
-    ctrlbus replay FILE --port ENDPOINT [--direction core|base] [--speed X] [--capture OUT]
-                   [--linger S] [--baud N]
+    ctrlbus replay FILE --port ENDPOINT [--direction core|base] [--speed X] [--max-gap S]
+                   [--capture OUT] [--linger S] [--baud N]
 
 The chunks of the chosen side are written at their recorded times relative to the first of them,
-divided by --speed (0: no waiting at all). Whatever comes back is read all along (so the other
-side never blocks on a full buffer) and, with --capture, recorded together with what was played.
+divided by --speed (0: no waiting at all); no pause is longer than --max-gap (a capture's clock
+can jump by years). Whatever comes back is read all along (so the other side never blocks on a
+full buffer) and, with --capture, recorded together with what was played.
 """
 
 from __future__ import annotations
@@ -34,7 +35,9 @@ from ctrlbus.errors import UsageError
 from ctrlbus.link import Link, TcpServerLink
 
 __all__ = [
+    "DEFAULT_MAX_GAP_S",
     "DESCRIPTION",
+    "cap_gaps",
     "play",
     "register",
     "replay_schedule",
@@ -44,11 +47,18 @@ __all__ = [
 DESCRIPTION = """\
 Play one side of a capture into a port: the chunks that side sent (--direction core, the default:
 the Core's requests; base: the base's answers), each at its recorded time relative to the first one,
-divided by --speed (2 = twice as fast; 0 = as fast as possible). --port takes a pyserial URL, 'pty'
+divided by --speed (2 = twice as fast; 0 = as fast as possible); a pause longer than --max-gap
+seconds (default 60: a capture's times may jump, by a clock step or a damaged file) is shortened to
+it, with a warning. --port takes a pyserial URL, 'pty'
 or 'listen:HOST:PORT' (playing starts once a client has connected). Bytes coming back are read and
 discarded, or recorded with --capture OUT together with what was played; after the last chunk the
 replay waits --linger seconds (default 0.5) for the last answers.
 """
+
+
+# The longest pause a replay makes by default: a capture whose times jump from 100 s to 2**32 s
+# would otherwise sleep for 136 years.
+DEFAULT_MAX_GAP_S = 60.0
 
 
 def register(subparsers: Any) -> None:
@@ -63,6 +73,13 @@ def register(subparsers: Any) -> None:
     add_direction_argument(parser, default="core", help_text="which side to play (default core: core→base)")
     parser.add_argument(
         "--speed", default="1", metavar="X", help="timing divided by X (default 1; 0: no waiting)"
+    )
+    parser.add_argument(
+        "--max-gap",
+        default=str(DEFAULT_MAX_GAP_S),
+        metavar="S",
+        help=f"no pause between chunks longer than S seconds (default {DEFAULT_MAX_GAP_S:g}); longer "
+        "ones are shortened to S, with a warning",
     )
     parser.add_argument("--capture", metavar="OUT", help="record what was played and what came back")
     parser.add_argument(
@@ -90,6 +107,24 @@ def replay_schedule(
         latest = max(latest, at)
         schedule.append((latest, item.data))
     return schedule
+
+
+def cap_gaps(
+    schedule: Sequence[tuple[float, bytes]], max_gap: float
+) -> tuple[list[tuple[float, bytes]], list[float]]:
+    """`schedule` with every pause between chunks longer than `max_gap` seconds shortened to it;
+    and the lengths of the pauses shortened."""
+    capped: list[tuple[float, bytes]] = []
+    shortened: list[float] = []
+    previous = shift = 0.0
+    for at, data in schedule:
+        gap = at - previous
+        previous = at
+        if gap > max_gap:
+            shortened.append(gap)
+            shift += gap - max_gap
+        capped.append((at - shift, data))
+    return capped, shortened
 
 
 def play(
@@ -144,7 +179,14 @@ def run(args: argparse.Namespace) -> int:
     direction = parse_sender(args.direction)
     speed = positive_number("--speed", args.speed, allow_zero=True)
     linger = positive_number("--linger", args.linger, allow_zero=True)
-    schedule = replay_schedule(_read_records(args.file), direction, speed)
+    max_gap = positive_number("--max-gap", args.max_gap, allow_zero=True)
+    schedule, shortened = cap_gaps(replay_schedule(_read_records(args.file), direction, speed), max_gap)
+    if shortened:
+        print(
+            f"ctrlbus replay: warning: {args.file}: {len(shortened)} pause(s) longer than --max-gap "
+            f"{max_gap:g} s (the longest {max(shortened):.6g} s) shortened to {max_gap:g} s",
+            file=sys.stderr,
+        )
     link = open_endpoint(args.port, args.baud)
     writer: CaptureWriter | None = None
     try:

@@ -19,9 +19,10 @@ from typing import Any
 
 from ctrlbus.base import DEFAULT_FRAME_TIMEOUT_S, DEFAULT_WATCHDOG_S, serve
 from ctrlbus.cli.common import add_serve_arguments, stop_on_signals
+from ctrlbus.cli.completion_cmd import offer_values
 from ctrlbus.constants import Profile
 from ctrlbus.errors import UsageError
-from ctrlbus.quirks import parse_quirks
+from ctrlbus.quirks import Quirks, parse_quirks
 from ctrlbus.sim.description import load_base_description
 from ctrlbus.sim.server import MAX_TIME_SCALE, SimServer, SimSettings
 
@@ -61,7 +62,7 @@ def register(subparsers: Any) -> None:
         help="JSON binary configuration (see `ctrlbus config example`) served for GET_BASE_CONF_ADV "
         "(0x21); without it 0x21 is answered ERROR 0x8000 and the Core uses GET_BASE_CONF",
     )
-    parser.add_argument(
+    profile = parser.add_argument(
         "--profile",
         default=Profile.REFERENCE.value,
         metavar="NAME",
@@ -101,7 +102,7 @@ def register(subparsers: Any) -> None:
         action="store_true",
         help="answer checksum errors with 0x00C0 as the reference firmware does (default 0x0040)",
     )
-    parser.add_argument(
+    quirks = parser.add_argument(
         "--quirks",
         default="none",
         metavar="MODE",
@@ -110,6 +111,8 @@ def register(subparsers: Any) -> None:
         "inter-byte timeout, 1.9 s of silence and a low battery at power-on; docs/simulator.md); "
         "none (default): the documented ctrlbus behaviour",
     )
+    offer_values(profile, (item.value for item in Profile))
+    offer_values(quirks, (item.value for item in Quirks))
     parser.set_defaults(func=run)
 
 

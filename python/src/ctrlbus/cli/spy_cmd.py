@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import queue
 import sys
 import threading
@@ -241,16 +242,32 @@ def register(subparsers: Any) -> None:
 
 
 class Printer:
-    """Prints annotations as they come: one text line or one JSON object per line."""
+    """Prints annotations as they come: one text line or one JSON object per line.
 
-    def __init__(self, *, as_json: bool, color: bool, time_origin: float) -> None:
+    When stdout's reader goes away (`| head`), printing stops and the session goes on: a tap or
+    a spy writing a capture keeps recording (the file is the product), a spy keeps forwarding.
+    `gone_note` is what stderr is told then, once."""
+
+    def __init__(self, *, as_json: bool, color: bool, time_origin: float, gone_note: str = "") -> None:
         self.as_json = as_json
         self.color = color
         self.time_origin = time_origin
+        self.gone_note = gone_note
+        self.gone = False
 
     def line(self, text: str) -> None:
-        sys.stdout.write(text + "\n")
-        sys.stdout.flush()
+        if self.gone:
+            return
+        try:
+            sys.stdout.write(text + "\n")
+            sys.stdout.flush()
+        except BrokenPipeError:
+            self.gone = True
+            # Later writes, and the flush at exit, go nowhere instead of failing again.
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+            os.close(devnull)
+            print(f"ctrlbus: stdout was closed; {self.gone_note or 'the output stops'}", file=sys.stderr)
 
     def record(self, record: dict[str, Any], text: str) -> None:
         self.line(json.dumps(record) if self.as_json else text)
@@ -274,7 +291,12 @@ def run(args: argparse.Namespace) -> int:
     core, base = open_sides(args.core, args.base, args.baud)
     try:
         spy = Spy(core, base, transforms=transforms)
-        printer = Printer(as_json=args.json, color=use_color(args.color), time_origin=time.time())
+        printer = Printer(
+            as_json=args.json,
+            color=use_color(args.color),
+            time_origin=time.time(),
+            gone_note="still forwarding" + (f" and recording to {args.capture}" if args.capture else ""),
+        )
         run_session(spy, annotator, printer, capture_path=args.capture, duration=duration)
         for direction, injected in sorted(transforms.items()):
             counters = injected.model.counters.as_dict()
@@ -367,7 +389,11 @@ def show_chunks(
         if capture is not None and chunk.data:
             try:
                 capture.write(chunk.direction, chunk.data, chunk.time)
-            except (OSError, CaptureError) as exc:
+            except OSError as exc:  # a full disk: the message names the file
+                raise UsageError(
+                    f"cannot write {capture.path or 'the capture'}: {exc.strerror or exc}"
+                ) from None
+            except CaptureError as exc:
                 raise UsageError(f"cannot write the capture: {exc}") from None
         for entry in annotator.feed(chunk.data, chunk.direction, chunk.time):
             printer.record(

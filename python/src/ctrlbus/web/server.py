@@ -35,6 +35,7 @@ from typing import Any
 from urllib.parse import urlsplit
 
 from aiohttp import WSMsgType, web
+from aiohttp.http_exceptions import HttpProcessingError
 
 from ctrlbus import __version__
 from ctrlbus.errors import CtrlbusError, LinkError
@@ -52,11 +53,10 @@ from ctrlbus.web.control import (
     clamp_velocity,
     parse_control_message,
 )
-from ctrlbus.web.options import DashboardOptions
+from ctrlbus.web.options import DashboardOptions, is_loopback
 from ctrlbus.web.source import DashboardSource, accepts_external_commands
 
 __all__ = [
-    "LOOPBACK_NAMES",
     "MAX_FRAME_BYTES",
     "PUBLIC_PATHS",
     "PUBLIC_PREFIXES",
@@ -73,7 +73,6 @@ STATIC_DIR = Path(__file__).parent / "static"
 # WebSocket frames larger than this close the connection; anything between MAX_MESSAGE_CHARS
 # and this gets an error reply instead.
 MAX_FRAME_BYTES = 64 * 1024
-LOOPBACK_NAMES = frozenset({"localhost", "127.0.0.1", "::1"})
 PUBLIC_PREFIXES = ("/static/",)
 PUBLIC_PATHS = frozenset({"/favicon.ico"})
 # The log rate of each kind of message a client can trigger (LogLimiter).
@@ -108,6 +107,7 @@ class ServerCounters:
     source_errors: int = 0
     teleop_timeouts: int = 0
     unauthorized: int = 0
+    malformed_requests: int = 0  # refused by aiohttp's parser (a duplicate Host header, ...)
     refused_during_estop: int = 0
     by_type: dict[str, int] = field(default_factory=dict)
 
@@ -138,7 +138,9 @@ class LogLimiter:
         self._last: dict[str, float] = {}
         self._suppressed: dict[str, int] = {}
 
-    def log(self, level: int, key: str, message: str, *args: object, exc_info: bool = False) -> bool:
+    def log(
+        self, level: int, key: str, message: str, *args: object, exc_info: bool | BaseException = False
+    ) -> bool:
         """Log `message % args` at `level` unless `key` is over its rate; returns whether it did."""
         now = self._clock()
         credit = self._credit.get(key, float(self._burst))
@@ -155,6 +157,35 @@ class LogLimiter:
             message += f" ({suppressed} similar messages suppressed)"
         self._logger.log(level, message, *args, exc_info=exc_info)
         return True
+
+
+class _HttpParserLog:
+    """The logger aiohttp's connection handler is given. A request its parser refuses (a
+    duplicate Host header, a bad request line, ...) is answered 400 by aiohttp before any handler
+    or token check runs, and would be logged with a traceback each time: here it is counted and
+    logged as one line through the server's LogLimiter. Anything else aiohttp reports (a handler
+    that raised: our bug) keeps its traceback, rate-limited too; its debug lines stay debug lines."""
+
+    def __init__(self, limiter: LogLimiter, counters: ServerCounters) -> None:
+        self._limiter = limiter
+        self._counters = counters
+
+    def exception(self, message: str, *args: object, exc_info: object = None, **_: object) -> None:
+        if isinstance(exc_info, HttpProcessingError):
+            self._counters.malformed_requests += 1
+            reason = " ".join(str(exc_info.message).split())[:200] or "no reason given"
+            text = (message % args).replace("Error handling request", "refused a malformed request")
+            self._limiter.log(logging.WARNING, "malformed-request", "%s: %s", text, reason)
+            return
+        error = exc_info if isinstance(exc_info, BaseException) else False
+        self._limiter.log(logging.ERROR, "server-error", message, *args, exc_info=error)
+
+    error = warning = exception
+
+    def debug(self, message: str, *args: object, **_: object) -> None:
+        log.debug(message, *args)
+
+    info = debug
 
 
 class DashboardServer:
@@ -264,7 +295,13 @@ class DashboardServer:
         app.router.add_get("/api/snapshot", self._snapshot_http)
         app.router.add_get("/favicon.ico", self._no_icon)
         app.router.add_static("/static/", STATIC_DIR, follow_symlinks=False, append_version=False)
-        runner = web.AppRunner(app, access_log=None, handle_signals=False, shutdown_timeout=1.0)
+        runner = web.AppRunner(
+            app,
+            access_log=None,
+            handle_signals=False,
+            shutdown_timeout=1.0,
+            logger=_HttpParserLog(self._log, self.counters),
+        )
         await runner.setup()
         try:
             site = web.TCPSite(runner, self.options.host, self.options.port)
@@ -325,7 +362,7 @@ class DashboardServer:
                     text="missing or wrong dashboard token",
                     headers={"WWW-Authenticate": 'Bearer realm="ctrlbus"'},
                 )
-        elif _host_name(host) not in LOOPBACK_NAMES:
+        elif not is_loopback(_host_name(host)):
             # No token means loopback only; a foreign Host header means DNS rebinding, and none
             # at all is no proof of loopback (aiohttp would put the machine's name in its place).
             return web.Response(status=403, text="this dashboard answers only to localhost")

@@ -1,18 +1,22 @@
 /* SPDX-License-Identifier: MIT */
-/* Board support for mps2-an385: SysTick millisecond clock and the CMSDK UART0 driver. */
-#include "board.h"
-
+/* c/ports/port.h for QEMU's mps2-an385 board (ARM AN385: Cortex-M3 on the MPS2 FPGA, 25 MHz), as
+ * `qemu-system-arm -M mps2-an385` models it (hw/arm/mps2.c; UART0 is QEMU's serial 0). QEMU-only:
+ * the board is an FPGA image, so this port has no chip image (README.md).
+ *
+ * UART: CMSDK APB UART0 at 0x40004000, 115200 8N1; its RX interrupt (IRQ 0) hands each byte to
+ * port_uart_received(). QEMU's UART holds one received byte and takes the next from the host only
+ * once the firmware has read it, so the host is held back rather than bytes lost.
+ * Clock: CMSDK APB timer 0 counts down at the system clock, free-running, and port_millis() turns
+ * the cycles since its last call into milliseconds (counting SysTick interrupts instead loses time
+ * under QEMU: ticks that fall due while the emulated CPU is not running merge into one interrupt;
+ * a counter read does not). It must be called at least every 171 s (the counter's wrap). SysTick
+ * interrupts every millisecond, only to wake the main loop from WFI.
+ * Reset: port_reset() (PORT_HAS_RESET) through the Cortex-M3's AIRCR, for BASE_CMD REBOOT. */
 #include "cortex_m.h"
 #include "mps2_an385.h"
+#include "port.h"
 
-/* Firmware-wide state shared with the interrupt handlers; the library itself has none. */
-static board_rx_handler_t uart_rx_handler;
-static void *uart_rx_context;
-
-/* The millisecond clock: APB timer 0 counts down at the system clock, free-running; the main loop
- * turns the cycles since its last read into milliseconds. Counting SysTick interrupts instead
- * loses time under QEMU (about a fifth of the ticks on this machine: ticks that fall due while
- * the emulated CPU is not running merge into one interrupt), and a counter read does not. */
+/* The port's state, shared with the interrupt handlers; the library itself has none. */
 static uint32_t clock_last_value;
 static uint32_t clock_cycles; /* cycles not yet counted as a whole millisecond */
 static uint32_t clock_ms;
@@ -20,16 +24,13 @@ static uint32_t clock_ms;
 
 #define UART_BAUD 115200u
 
-/* The shared vector table (../ports/cortex_m/startup.c) is sized and wired by the Makefile's
+/* The shared vector table (cortex_m/startup.c) is sized and wired by the Makefile's
  * PORT_IRQ_COUNT and PORT_UART_IRQN: they must be this board's. */
 typedef char irq_count_is_the_boards[PORT_IRQ_COUNT == MPS2_IRQ_COUNT ? 1 : -1];
 typedef char uart_irq_is_uart0_rx[PORT_UART_IRQN == MPS2_UART0_RX_IRQN ? 1 : -1];
 
-void board_init(board_rx_handler_t rx_handler, void *context)
+void port_init(void)
 {
-    uart_rx_handler = rx_handler;
-    uart_rx_context = context;
-
     CMSDK_TIMER_RELOAD(MPS2_TIMER0_BASE) = 0xFFFFFFFFu;
     CMSDK_TIMER_VALUE(MPS2_TIMER0_BASE) = 0xFFFFFFFFu;
     CMSDK_TIMER_CTRL(MPS2_TIMER0_BASE) = CMSDK_TIMER_CTRL_ENABLE;
@@ -42,7 +43,7 @@ void board_init(board_rx_handler_t rx_handler, void *context)
     cortex_m_enable_irq(MPS2_UART0_RX_IRQN);
 }
 
-uint32_t board_now_ms(void)
+uint32_t port_millis(void)
 {
     uint32_t value = CMSDK_TIMER_VALUE(MPS2_TIMER0_BASE);
     uint32_t elapsed = clock_last_value - value; /* a down-counter; wraps every 171.8 s */
@@ -58,7 +59,7 @@ uint32_t board_now_ms(void)
 
 void port_systick_handler(void)
 {
-    /* Nothing to do: the tick only wakes the main loop from board_wait_for_interrupt(). */
+    /* Nothing to do: the tick only wakes the main loop from port_idle(). */
 }
 
 void port_uart_irq_handler(void)
@@ -67,14 +68,11 @@ void port_uart_irq_handler(void)
      * again instead of being left unnoticed in the holding register. */
     CMSDK_UART_INTSTATUS(MPS2_UART0_BASE) = CMSDK_UART_INT_RX;
     while (CMSDK_UART_STATE(MPS2_UART0_BASE) & CMSDK_UART_STATE_RX_FULL) {
-        uint8_t byte = (uint8_t)CMSDK_UART_DATA(MPS2_UART0_BASE);
-        if (uart_rx_handler != 0) {
-            uart_rx_handler(uart_rx_context, byte);
-        }
+        port_uart_received((uint8_t)CMSDK_UART_DATA(MPS2_UART0_BASE));
     }
 }
 
-void board_uart_write(const uint8_t *data, size_t size)
+void port_uart_write(const uint8_t *data, size_t size)
 {
     for (size_t i = 0; i < size; i++) {
         while (CMSDK_UART_STATE(MPS2_UART0_BASE) & CMSDK_UART_STATE_TX_FULL) {
@@ -83,12 +81,12 @@ void board_uart_write(const uint8_t *data, size_t size)
     }
 }
 
-void board_wait_for_interrupt(void)
+void port_idle(void)
 {
     cortex_m_wait_for_interrupt();
 }
 
-void board_reset(void)
+void port_reset(void)
 {
     __asm__ volatile("dsb" ::: "memory");
     SCB_AIRCR = SCB_AIRCR_VECTKEY | SCB_AIRCR_SYSRESETREQ;

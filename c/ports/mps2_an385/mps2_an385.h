@@ -1,9 +1,9 @@
 /* SPDX-License-Identifier: MIT */
 /* Registers of the parts of QEMU's mps2-an385 board (ARM AN385: Cortex-M3 on the MPS2 FPGA) that
- * the firmware uses. Addresses and interrupt numbers are those of QEMU's model (hw/arm/mps2.c),
+ * its port (port.c) uses. Addresses and interrupt numbers are those of QEMU's model (hw/arm/mps2.c),
  * which follows the AN385 application note. */
-#ifndef CTRLBUS_FW_MPS2_AN385_H
-#define CTRLBUS_FW_MPS2_AN385_H
+#ifndef CTRLBUS_PORT_MPS2_AN385_H
+#define CTRLBUS_PORT_MPS2_AN385_H
 
 #include <stdint.h>
 

@@ -1,13 +1,13 @@
 /* SPDX-License-Identifier: MIT */
-/* Board bring-up probe: every byte received on UART0 is sent back.
+/* Board bring-up probe for a new port: every byte received on the UART is sent back.
  *
- * It proves the path the base firmware relies on (vector table, .data/.bss start-up, the UART0
- * RX interrupt, the main loop that sleeps between interrupts) without the protocol stack. The
- * interrupt handler queues bytes in a single-producer/single-consumer ring; the main loop drains
- * it. */
+ * It proves the path a base relies on (vector table, .data/.bss start-up, the UART receive
+ * interrupt, the main loop that sleeps between interrupts) through port.h, without the protocol
+ * stack. The interrupt queues bytes in a single-producer/single-consumer ring; the main loop
+ * drains it. */
 #include <stdint.h>
 
-#include "board.h"
+#include "port.h"
 
 #define ECHO_RING_SIZE 256u /* a power of two, so the free-running indices wrap cleanly */
 
@@ -20,9 +20,9 @@ typedef struct {
 
 static echo_ring_t ring;
 
-static void on_rx_byte(void *context, uint8_t byte)
+void port_uart_received(uint8_t byte)
 {
-    echo_ring_t *r = context;
+    echo_ring_t *r = &ring;
     uint32_t head = r->head;
     if (head - r->tail >= ECHO_RING_SIZE) {
         r->dropped = r->dropped + 1u;
@@ -34,15 +34,15 @@ static void on_rx_byte(void *context, uint8_t byte)
 
 int main(void)
 {
-    board_init(on_rx_byte, &ring);
+    port_init();
     for (;;) {
         uint32_t tail = ring.tail;
         if (tail == ring.head) {
-            board_wait_for_interrupt();
+            port_idle();
             continue;
         }
         uint8_t byte = ring.bytes[tail % ECHO_RING_SIZE];
         ring.tail = tail + 1u;
-        board_uart_write(&byte, 1);
+        port_uart_write(&byte, 1);
     }
 }
