@@ -68,6 +68,9 @@ lint: setup
 	@cd python && ../$(VENV)/bin/mypy src tests
 	@$(VENV)/bin/ruff check --config python/pyproject.toml bench && $(VENV)/bin/ruff format --config python/pyproject.toml --check bench
 	@cd bench && MYPYPATH=../python/src ../$(VENV)/bin/mypy --config-file ../python/pyproject.toml --explicit-package-bases .
+	@$(VENV)/bin/ruff check --config python/pyproject.toml scripts/generate_protocol.py && \
+	  $(VENV)/bin/ruff format --config python/pyproject.toml --check scripts/generate_protocol.py && \
+	  $(VENV)/bin/mypy --config-file python/pyproject.toml scripts/generate_protocol.py
 
 # Python tests run against the C builds too (host base, firmware), so build those first. The whole
 # suite runs twice: on the default interpreter and on Python 3.10, the oldest supported

@@ -195,7 +195,9 @@ def _check_answer(answer: Answer) -> None:
     if bytes_fields and answer.fields[-1] is not bytes_fields[0]:
         raise DescriptionError(f"{answer.message}: a bytes field must be the last one")
     counted = [f.raw["count_field"] for f in bytes_fields if "count_field" in f.raw]
-    if counted and (len(answer.fields) < 2 or answer.fields[-2].name != counted[0] or answer.fields[-2].type != "u8"):
+    if counted and (
+        len(answer.fields) < 2 or answer.fields[-2].name != counted[0] or answer.fields[-2].type != "u8"
+    ):
         raise DescriptionError(f"{answer.message}: a bytes field's count must be the u8 field just before it")
 
 
@@ -205,7 +207,8 @@ def _check_answer(answer: Answer) -> None:
 def replace_block(text: str, name: str, body: str, path: str) -> str:
     """`text` with the lines between the BEGIN/END GENERATED `name` markers replaced by `body`."""
     pattern = re.compile(
-        rf"(^[^\n]*BEGIN GENERATED {re.escape(name)}\b[^\n]*\n)(.*?)(^[^\n]*END GENERATED {re.escape(name)}\b)",
+        rf"(^[^\n]*BEGIN GENERATED {re.escape(name)}\b[^\n]*\n)(.*?)"
+        rf"(^[^\n]*END GENERATED {re.escape(name)}\b)",
         re.S | re.M,
     )
     found = pattern.search(text)
@@ -265,13 +268,14 @@ def c_members(answer: Answer, desc: Description) -> Iterator[str]:
 
 def c_bits(desc: Description) -> str:
     lines: list[str] = []
-    for name, group in desc.raw["bits"].items():
+    for group in desc.raw["bits"].values():
         if "c_prefix" not in group:
             continue
         lines.append(c_comment_block(f"{group['of']} ([{group['anchor']}])."))
         for bit in group["bits"]:
             lines.append(
-                f"#define CTRLBUS_{group['c_prefix']}_{bit['name']} 0x{1 << bit['bit']:02X}u /* {bit['meaning']} */"
+                f"#define CTRLBUS_{group['c_prefix']}_{bit['name']} 0x{1 << bit['bit']:02X}u"
+                f" /* {bit['meaning']} */"
             )
     return "\n".join(lines) + "\n"
 
@@ -311,7 +315,8 @@ def c_answer_structs(desc: Description) -> str:
                 blocks.append(c_position_struct(desc, f.type))
         members = "\n".join(c_members(answer, desc))
         blocks.append(
-            f"/* {message.name} (docs/protocol.md [{message.anchor}]) */\ntypedef struct {{\n{members}\n}} {c_struct(message)};"
+            f"/* {message.name} (docs/protocol.md [{message.anchor}]) */\n"
+            f"typedef struct {{\n{members}\n}} {c_struct(message)};"
         )
     return "\n\n".join(blocks) + "\n"
 
@@ -346,7 +351,8 @@ def c_size_macros(desc: Description) -> str:
         elif answer.bytes_field is not None:
             if "count_field" in answer.bytes_field.raw:
                 lines.append(
-                    f"#define {prefix}_MIN {answer.base_size}u /* + {answer.bytes_field.raw['count_field']} */"
+                    f"#define {prefix}_MIN {answer.base_size}u"
+                    f" /* + {answer.bytes_field.raw['count_field']} */"
                 )
         elif answer.optional_field is not None:
             tail = answer.optional_field
@@ -361,7 +367,8 @@ def c_size_macros(desc: Description) -> str:
                 )
         elif "min_size" in answer.raw:
             lines.append(
-                f"#define {prefix}_SIZE {answer.full_size}u /* {answer.raw['min_size']}..{answer.full_size} accepted */"
+                f"#define {prefix}_SIZE {answer.full_size}u"
+                f" /* {answer.raw['min_size']}..{answer.full_size} accepted */"
             )
         else:
             lines.append(f"#define {prefix}_SIZE {answer.full_size}u")
@@ -422,7 +429,7 @@ def c_layouts(desc: Description) -> str:
             names = " + ".join(m.name for m in entry.members[1:])
             note = f" /* + {names} */" if names else ""
             rows.append(f"    CODEC_FIELD({struct}, {entry.first.name}, {entry.kind}, {entry.count}),{note}")
-            for before, after in zip(entry.members, entry.members[1:]):
+            for before, after in zip(entry.members, entry.members[1:], strict=False):
                 checks.append(f"FOLLOWS({struct}, {before.name}, {after.name}, {entry.first.width}u)")
             checks.append(f"offsetof({struct}, {entry.members[-1].name}) < 256u")
         table = "\n".join(rows)
@@ -495,9 +502,15 @@ def c_decoding(message: Message) -> tuple[str, str]:
         rest_at = f"offsetof({struct}, {blob.name})"
         if "count_field" not in blob.raw:
             checks.append(f"offsetof({struct}, {blob.name}_len) == {rest_at} + sizeof(const uint8_t *)")
-    limits = [(f"offsetof({struct}, {f.name})", f"{f.raw['max']}u") for f in answer.fields if f.raw.get("max_is_format_error")]
+    limits = [
+        (f"offsetof({struct}, {f.name})", f"{f.raw['max']}u")
+        for f in answer.fields
+        if f.raw.get("max_is_format_error")
+    ]
     limits += [
-        (f"offsetof({struct}, {f.name}) + {c_count(f)} - 1u", "0u") for f in answer.fields if f.raw.get("nul_in_field")
+        (f"offsetof({struct}, {f.name}) + {c_count(f)} - 1u", "0u")
+        for f in answer.fields
+        if f.raw.get("nul_in_field")
     ]
     if len(limits) > 2 or len({most for _, most in limits}) > 1:
         raise DescriptionError(f"{message.name}: at most two checked limits, of one value")
@@ -515,7 +528,11 @@ def c_decoding(message: Message) -> tuple[str, str]:
         if len(limits[0][0]) + len(limits[1][0]) > 60
         else f".limit_at = {{{limits[0][0]}, {limits[1][0]}}}",
     ]
-    row = f"    [DECODING_{message.name}] =\n        {{\n" + "".join(f"            {m},\n" for m in members) + "        },"
+    row = (
+        f"    [DECODING_{message.name}] =\n        {{\n"
+        + "".join(f"            {m},\n" for m in members)
+        + "        },"
+    )
     offsets = [o for o in (length_at, rest_at, limits[0][0], limits[1][0]) if o != "NONE"]
     return row, " &&\n             ".join([f"{o} < NONE" for o in offsets] + checks)
 
@@ -528,7 +545,9 @@ def c_decoders(desc: Description) -> str:
         f"enum {{\n{names}\n}};",
         "",
         "/* Every offset of a decoding fits its byte (NONE, 0xFF, is none). */",
-        "typedef char decoding_offsets_fit_a_byte\n    [" + " &&\n             ".join(c for c in checks if c) + " ? 1 : -1];",
+        "typedef char decoding_offsets_fit_a_byte\n    ["
+        + " &&\n             ".join(c for c in checks if c)
+        + " ? 1 : -1];",
         "",
         "static const ctrlbus_codec_decoding_t DECODINGS[] = {",
         *rows,
@@ -555,7 +574,8 @@ def c_test_fields(desc: Description) -> str:
         '#include "ctrlbus/messages.h"',
         "",
         "#define ANSWER_FIELD_NONE ((size_t)-1)",
-        "typedef enum { AF_U8, AF_U16, AF_U32, AF_S32, AF_TEXT, AF_BYTES, AF_POSITIONS } answer_field_kind_t;",
+        "typedef enum { AF_U8, AF_U16, AF_U32, AF_S32, AF_TEXT, AF_BYTES, AF_POSITIONS }"
+        " answer_field_kind_t;",
         "typedef struct {",
         "    const char *name;",
         "    size_t offset;   /* in the answer struct */",
@@ -581,7 +601,14 @@ def c_test_fields(desc: Description) -> str:
         rows = []
         fields = list(a.fields)
         for f in fields:
-            kind = {"u8": "AF_U8", "u16": "AF_U16", "u32": "AF_U32", "s32": "AF_S32", "text": "AF_TEXT", "bytes": "AF_BYTES"}.get(f.type, "AF_POSITIONS")
+            kind = {
+                "u8": "AF_U8",
+                "u16": "AF_U16",
+                "u32": "AF_U32",
+                "s32": "AF_S32",
+                "text": "AF_TEXT",
+                "bytes": "AF_BYTES",
+            }.get(f.type, "AF_POSITIONS")
             count = f"{f.count}u" if (f.is_array or f.struct_words) else "0u"
             has_at = f"offsetof({struct}, has_{f.name})" if f.optional else "ANSWER_FIELD_NONE"
             len_at = count_at = "ANSWER_FIELD_NONE"
@@ -589,14 +616,23 @@ def c_test_fields(desc: Description) -> str:
                 count_at = f"offsetof({struct}, {f.raw['count_field']})"
             elif f.type == "bytes":
                 len_at = f"offsetof({struct}, {f.name}_len)"
-            rows.append(f'    {{"{f.name}", offsetof({struct}, {f.name}), {kind}, {count}, {has_at}, {len_at}, {count_at}}},')
+            rows.append(
+                f'    {{"{f.name}", offsetof({struct}, {f.name}), {kind}, {count},'
+                f" {has_at}, {len_at}, {count_at}}},"
+            )
         if "size_field" in a.raw:
             name = a.raw["size_field"]
-            rows.append(f'    {{"{name}", offsetof({struct}, {name}), AF_U8, 0u, ANSWER_FIELD_NONE, ANSWER_FIELD_NONE, ANSWER_FIELD_NONE}},')
+            rows.append(
+                f'    {{"{name}", offsetof({struct}, {name}), AF_U8, 0u,'
+                " ANSWER_FIELD_NONE, ANSWER_FIELD_NONE, ANSWER_FIELD_NONE},"
+            )
         out.append(f"static const answer_field_t {m.name}_FIELDS[] = {{")
         out += rows
         out.append("};")
-        tables.append(f"    {{CTRLBUS_REQ_{m.name}, {m.name}_FIELDS, sizeof {m.name}_FIELDS / sizeof {m.name}_FIELDS[0]}},")
+        tables.append(
+            f"    {{CTRLBUS_REQ_{m.name}, {m.name}_FIELDS,"
+            f" sizeof {m.name}_FIELDS / sizeof {m.name}_FIELDS[0]}},"
+        )
     out.append("")
     out.append("/* The OK payload lengths the description allows (a counted answer: with a count of 3). */")
     out.append("static inline bool answer_length_allowed(ctrlbus_req_kind_t to, size_t len)")
@@ -704,7 +740,9 @@ def py_fields_class(message: Message, desc: Description) -> str:
     if answer.optional_field is not None:
         lines.append(py_struct("_REFERENCE_FORM: ClassVar[struct.Struct]", py_format(tuple(plain), desc)))
         lines.append(py_struct("_SDK_FORM: ClassVar[struct.Struct]", py_format(answer.fields, desc)))
-        lines.append("    _FORMS: ClassVar[tuple[struct.Struct, struct.Struct] | None] = (_REFERENCE_FORM, _SDK_FORM)")
+        lines.append(
+            "    _FORMS: ClassVar[tuple[struct.Struct, struct.Struct] | None] = (_REFERENCE_FORM, _SDK_FORM)"
+        )
         lines.append(f'    _TAIL: ClassVar[str | None] = "{answer.optional_field.name}"')
     elif not simple and answer.bytes_field is None and "min_size" not in answer.raw:
         lines.append(py_struct("_WIRE: ClassVar[struct.Struct]", py_format(answer.fields, desc)))
@@ -854,6 +892,23 @@ def lua_names(values: dict[str, str] | dict[int, str]) -> str:
     return f"{{ {items} }}"
 
 
+def request_code_names(desc: Description) -> dict[int, str]:
+    """Control-bus request code -> name (the HEALTH_MGMT code names its group)."""
+    return {
+        number(m.raw["code"]): ("HEALTH_MGMT" if m.subcommand is not None else m.name)
+        for m in desc.messages
+        if m.code is not None
+    }
+
+
+def health_sub_names(desc: Description) -> dict[int, str]:
+    return {number(m.raw["subcommand"]): m.name for m in desc.messages if m.subcommand is not None}
+
+
+def cmd_names(raw: dict[str, Any], *sections: str) -> dict[int, str]:
+    return {number(c["cmd"]): c["name"] for section in sections for c in raw[section]}
+
+
 def bit_names(group: dict[str, Any]) -> dict[int, str]:
     return {b["bit"]: b["meaning"] for b in group["bits"]}
 
@@ -910,9 +965,9 @@ def lua_tables(desc: Description) -> str:
         "-- The protocol description's tables for ctrlbus.lua, which loads this file from its own folder:",
         "-- names, bit meanings, the contract's fields, request arguments and OK answer layouts.",
         "return {",
-        f"    CMD_NAMES = {lua_names({**{c['cmd']: c['name'] for c in raw['request_cmds']}, **{c['cmd']: c['name'] for c in raw['response_cmds']}})},",
-        f"    REQUEST_NAMES = {lua_names({m.raw['code']: ('HEALTH_MGMT' if m.subcommand is not None else m.name) for m in desc.messages if m.code is not None})},",
-        f"    HEALTH_NAMES = {lua_names({m.raw['subcommand']: m.name for m in desc.messages if m.subcommand is not None})},",
+        f"    CMD_NAMES = {lua_names(cmd_names(raw, 'request_cmds', 'response_cmds'))},",
+        f"    REQUEST_NAMES = {lua_names(request_code_names(desc))},",
+        f"    HEALTH_NAMES = {lua_names(health_sub_names(desc))},",
     ]
     for name, group in raw["values"].items():
         out.append(f"    {name.upper()} = {lua_names(group['values'])},")
@@ -1012,17 +1067,10 @@ def sigrok_tables(desc: Description) -> str:
         body = "".join(f"    0x{number(code):02X}: {text!r},\n" for code, text in values.items())
         out.append(f"{name} = {{\n{body}}}")
 
-    names("TOP_REQUESTS", {c["cmd"]: c["name"] for c in raw["request_cmds"]})
-    names("RESPONSES", {c["cmd"]: c["name"] for c in raw["response_cmds"]})
-    names(
-        "CTRL_REQUESTS",
-        {
-            m.raw["code"]: ("HEALTH_MGMT" if m.subcommand is not None else m.name)
-            for m in desc.messages
-            if m.code is not None
-        },
-    )
-    names("HEALTH_SUBS", {m.raw["subcommand"]: m.name for m in desc.messages if m.subcommand is not None})
+    names("TOP_REQUESTS", cmd_names(raw, "request_cmds"))
+    names("RESPONSES", cmd_names(raw, "response_cmds"))
+    names("CTRL_REQUESTS", request_code_names(desc))
+    names("HEALTH_SUBS", health_sub_names(desc))
     for name, group in raw["values"].items():
         names(name.upper(), group["values"])
     names("HEALTH_LEVELS", raw["health"]["levels"])
@@ -1059,7 +1107,8 @@ def sigrok_tables(desc: Description) -> str:
             size["size_field"] = a.raw["size_field"]
         fields = "".join(f"        {sigrok_field_spec(f)},\n" for f in a.fields)
         out.append(
-            f"    {m.name!r}: dict({', '.join(f'{k}={v!r}' for k, v in size.items())}, fields=(\n{fields}    )),"
+            f"    {m.name!r}: dict({', '.join(f'{k}={v!r}' for k, v in size.items())},"
+            f" fields=(\n{fields}    )),"
         )
     out.append("}")
     return "\n".join(out) + "\n"
@@ -1182,7 +1231,8 @@ def md_messages(desc: Description) -> str:
         sub = f"0x{m.subcommand:02X}" if m.subcommand is not None else ""
         required = "yes" if m.raw.get("required") else ""
         rows.append(
-            f"| 0x{m.code:02X} | {sub} | {m.name} | {m.request_size} | {md_answer_sizes(m)} | {required} | [{m.anchor}](#{m.anchor}) |"
+            f"| 0x{m.code:02X} | {sub} | {m.name} | {m.request_size} | {md_answer_sizes(m)} | {required}"
+            f" | [{m.anchor}](#{m.anchor}) |"
         )
     return "\n".join(rows) + "\n"
 
