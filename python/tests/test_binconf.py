@@ -489,7 +489,7 @@ def test_cli_in_a_subprocess(tmp_path: Path) -> None:
 def test_example_configuration_describes_the_default_simulated_base() -> None:
     """base-config.json and the simulator's data/sim-base.json describe the same robot (metres
     and radians here, millimetres and degrees there); sonar ids are GET_BASE_SENSOR_DATA channels,
-    bumper and cliff ids count the bumper bitmap's bumper and cliff bits."""
+    bumper and cliff ids are the bumper bitmap's bits."""
     from ctrlbus.sim.description import default_base_description
 
     robot = default_base_description()
@@ -508,7 +508,8 @@ def test_example_configuration_describes_the_default_simulated_base() -> None:
     for index, mount in enumerate(robot.bumper_mounts()):
         expected["bumper", index] = mount
     for index, cliff in enumerate(robot.cliff_sensors):
-        expected["cliff", index] = (cliff.x_mm, cliff.y_mm, cliff.z_mm, 0.0)
+        # A cliff's id is its bitmap bit, after the bumpers' (protocol §5.7).
+        expected["cliff", len(robot.bumper_mounts()) + index] = (cliff.x_mm, cliff.y_mm, cliff.z_mm, 0.0)
     described: dict[tuple[str, int], dict[str, JsonValue]] = {}
     sensors = base["sensors"]
     assert isinstance(sensors, list)

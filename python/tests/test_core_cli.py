@@ -274,7 +274,7 @@ def test_plain_lines_in_process_against_a_fake_base_and_a_clean_stop(
 JSON_KEYS = {
     "t_s", "state", "port", "since_s", "connects", "reason", "base", "pose", "command", "battery",
     "motion_status", "bumper_bitmap", "bumpers_pressed", "cliffs_triggered", "distances_mm",
-    "charger_probes", "health", "link", "events",
+    "ignored_sensors", "warnings", "charger_probes", "health", "link", "events",
 }  # fmt: skip
 
 

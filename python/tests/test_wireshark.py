@@ -331,7 +331,7 @@ def test_values_the_message_codec_refuses_are_flagged_like_it(tmp_path: Path) ->
             (C, "10 04 F8 90 02 01 7F"),
             (B, "50 25 00 02 00 01 02 01" + " 41" * 32 + " 75"),  # message without a NUL
             (C, "10 01 00 11"),
-            (B, "50 01 00 02 53"),  # OK to SYNC: no such answer
+            (B, "50 01 00 02 53"),  # an OK after a SYNC: a SYNC has no such answer
         ],
     )
     packets = tshark_fields(
@@ -351,7 +351,7 @@ def test_values_the_message_codec_refuses_are_flagged_like_it(tmp_path: Path) ->
     assert packets[4]["ctrlbus.probes"] == ["1", "2", "4"]
     assert packets[4]["ctrlbus.probe_count"] == ["3"]
     assert packets[3]["ctrlbus.data_type"] == ["0"]
-    assert packets[8]["ctrlbus.msg.to"] == ["SYNC"]
+    assert packets[8]["ctrlbus.msg.to"] == []  # it fits no waiting request: unpaired
 
 
 def test_verbose_view_shows_units_checksums_and_the_configuration_tree(

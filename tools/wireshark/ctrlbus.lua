@@ -28,11 +28,13 @@
 -- run of silently dropped bytes they lie in), ctrlbus.stream.offset (offset in that direction's
 -- byte stream), ctrlbus.counters.* (the direction's counters after the record).
 --
--- Pairing answers with requests: the outstanding request is the last request frame (Core to base)
--- decoded. An answer OK, SYNC, ECHO or INVALID answers it and clears it. An ERROR answers it and
--- clears it too, except the line-fault codes (every code below 0x0100: 0x0010, 0x0020, 0x0040,
--- 0x00C0 and the reference's combined ones such as 0x0090), which answer bytes rather than a
--- request: they get no `to` and leave the outstanding request alone.
+-- Pairing answers with requests, by order, timing and size (as `ctrlbus decode`): the requests
+-- waiting are the last PAIR_DEPTH request frames (Core to base), none older than PAIR_WINDOW_S. An
+-- answer goes to the newest waiting request it fits (an OK of a size that request's answer can
+-- have, a SYNC or ECHO to a request of the same CMD, any ERROR or INVALID); that request and every
+-- older one stop waiting. An OK that fits none is unpaired. The line-fault codes (every ERROR
+-- code below 0x0100: 0x0010, 0x0020, 0x0040, 0x00C0 and the reference's combined ones such as
+-- 0x0090) answer bytes rather than a request: they get no `to` and leave the requests waiting.
 --
 -- Tested with tshark 4.0 (Lua 5.2). It needs neither a bit library nor Lua 5.3 operators, so that
 -- builds on Lua 5.4 can run it too.
@@ -565,29 +567,72 @@ local function reset_state()
         decoders = { [0] = Decoder.new(P.prefs.max_frame, P.prefs.timeout_ms),
                      [1] = Decoder.new(P.prefs.max_frame, P.prefs.timeout_ms) },
         records = {},       -- packet number -> what the first pass found
-        outstanding = nil,  -- { name, label, packet, data } of the last unanswered request
+        waiting = {},       -- { name, label, packet, data, cmd, time } of the requests waiting, oldest first
     }
 end
 
 function P.init() reset_state() end
 reset_state()
 
-local function pair_frames(direction, items)
+local PAIR_DEPTH = 4
+local PAIR_WINDOW_S = 1.0
+-- OK payload sizes each request's answer may have (the table of ctrlbus.annotate.OK_SIZES).
+local OK_SIZES = {
+    CONNECT_BASE = { 28, 39 }, GET_BASE_CONF = { 264 }, GET_BASE_CONF_ADV = "blob",
+    GET_BASE_STATUS = { 2 }, GET_BASE_MOTOR_DATA = { 9 }, GET_BASE_SENSOR_DATA = { 64 },
+    GET_BASE_BUMPER_DATA = { 1, 2, 3, 4 }, GET_CHARGER_DATA = "charger",
+    SET_V_AND_GET_DEADRECKON = { 13, 17 }, POLL_BASE_CMD = { 0, 2 }, HEALTH_GET_HEALTH = { 2 },
+    HEALTH_GET_ERROR = { 36 }, SET_BASE_MOTOR = { 0 }, POLL_BASE_ANS_CMD = { 0 }, SEND_EVENT = { 0 },
+    HEALTH_CLR_ERROR = { 0 }, BASE_CMD = { 0 },
+}
+
+local function ok_size_fits(name, payload)
+    local sizes = name and OK_SIZES[name]
+    if not sizes then return true end
+    local n = #payload
+    if sizes == "blob" then return true end
+    if sizes == "charger" then return n >= 2 and n == 2 + payload:byte(2) end
+    for _, size in ipairs(sizes) do
+        if n == size then return true end
+    end
+    return false
+end
+
+local function answer_fits(request, cmd, payload)
+    if cmd == 0x00 or cmd == 0x01 then return request.cmd == cmd end
+    if cmd == 0x02 then
+        return request.cmd ~= 0x00 and request.cmd ~= 0x01 and ok_size_fits(request.name, payload)
+    end
+    return true
+end
+
+local function pair_frames(direction, items, time)
     for _, item in ipairs(items) do
         if item.type == "frame" then
             local _, _, cmd, payload = frame_parts(item.data)
             if direction == 0 then
                 local name, problem = request_name(cmd, payload)
-                state.outstanding = { name = name, label = name or problem, packet = item.first_packet,
-                    last_packet = item.last_packet, data = item.data }
+                table.insert(state.waiting, { name = name, label = name or problem, packet = item.first_packet,
+                    last_packet = item.last_packet, data = item.data, cmd = cmd, time = time })
+                while #state.waiting > PAIR_DEPTH do table.remove(state.waiting, 1) end
             else
-                local request = state.outstanding
+                local kept = {}
+                for _, request in ipairs(state.waiting) do
+                    if time - request.time <= PAIR_WINDOW_S then table.insert(kept, request) end
+                end
+                state.waiting = kept
                 local stream_error = cmd == 0x03 and #payload == 2
                     and payload:byte(1) + 256 * payload:byte(2) < LINE_FAULT_LIMIT
-                if request and not stream_error then
-                    item.to, item.to_label, item.request_in = request.name, request.label, request.last_packet
-                    item.request_data = request.data
-                    state.outstanding = nil
+                if not stream_error then
+                    for index = #kept, 1, -1 do
+                        local request = kept[index]
+                        if answer_fits(request, cmd, payload) then
+                            item.to, item.to_label, item.request_in = request.name, request.label, request.last_packet
+                            item.request_data = request.data
+                            for _ = 1, index do table.remove(state.waiting, 1) end
+                            break
+                        end
+                    end
                 end
                 item.stream_error = stream_error
             end
@@ -602,7 +647,7 @@ local function first_pass(number, direction, data, time)
     decoder:feed(data, time, number, items)
     decoder:finish_items(items)
     decoder:prune()
-    pair_frames(direction, items)
+    pair_frames(direction, items, time)
     local counters = {}
     for key, value in pairs(decoder.counters) do counters[key] = value end
     state.records[number] = { direction = direction, items = items, buffered = decoder:count(), counters = counters,
@@ -969,7 +1014,7 @@ local function show_frame(tree, tvb, pinfo, direction, item, summaries)
         elseif item.stream_error then
             frame_tree:add(ftvb(header, 1), "Answers bytes on the line, not a request")
         else
-            frame_tree:add_proto_expert_info(ex.unpaired, "No outstanding request: " .. (item.to_label or "none seen"))
+            frame_tree:add_proto_expert_info(ex.unpaired, "No outstanding request: " .. (item.to_label or "none waiting that it fits"))
         end
         kind, text = answer_fields(frame_tree, at, n, cmd, item)
         if (cmd == 0x00 or cmd == 0x01) and item.request_data and item.request_data ~= data then

@@ -14,9 +14,15 @@ frames and decoder events (docs/protocol.md §7). The annotator then
   counts), checksum failures carry the expected and found checksum, and bytes discarded silently
   (inside an earlier failure's span, §7 D4) get a rejection of their own.
 
-Pairing follows the Wireshark dissector (docs/capture-format.md "Pairing rule"): the outstanding
-request is the last request frame seen; an answer clears it, except ERROR 0x0010, 0x0020, 0x0040
-and 0x00C0, which answer bytes on the line rather than a request, get no `to` and leave it alone.
+Pairing follows the Wireshark dissector (docs/capture-format.md "Pairing rule"), by order, timing
+and size together: the requests still waiting are the last few request frames seen (at most
+`PAIR_DEPTH`, none older than `PAIR_WINDOW_S` when times are known); an answer goes to the newest
+of them that it fits (an OK whose size that request's answer can have, a SYNC/ECHO copy of it, or
+any ERROR or INVALID), and that request and every older one stop waiting, since a base answers in
+order. A line on which noise took an answer away leaves an older request waiting behind a newer
+one, and its late answer still finds it. An OK that fits none of them is "unpaired" (never a
+format error of the base). ERROR 0x0010, 0x0020, 0x0040, 0x00C0 and the other codes below 0x0100
+answer bytes on the line rather than a request: no `to`, and the requests keep waiting.
 
 Which frames are requests: with a known direction, everything the Core sends (core→base) is a
 request and everything the base sends is an answer. In one stream of unknown direction, a frame
@@ -100,6 +106,48 @@ PREVIEW_BYTES = 64  # rejected bytes kept for display (the count is always exact
 _OPEN_LIMIT = MAX_FRAME + (1 << 16)
 # Used for the end-of-input flush when the caller switched the inter-byte timeout off.
 _FLUSH_TIMEOUT_S = 1.0
+# How many requests may wait for an answer at once, and for how long: a Core has one outstanding,
+# but on a noisy line an answer may come after the Core has moved on to the next request (or to a
+# flushing SYNC). Seconds of capture time; a base answers within milliseconds.
+PAIR_DEPTH = 4
+PAIR_WINDOW_S = 1.0
+# OK payload sizes each request's answer may have (the same table as the Wireshark dissector's
+# pairing): a tuple of sizes, "blob" (any size) or "charger" (2 + probe_count).
+OK_SIZES: Mapping[str, Any] = {
+    "CONNECT_BASE": (28, 39),
+    "GET_BASE_CONF": (264,),
+    "GET_BASE_CONF_ADV": "blob",
+    "GET_BASE_STATUS": (2,),
+    "GET_BASE_MOTOR_DATA": (9,),
+    "GET_BASE_SENSOR_DATA": (64,),
+    "GET_BASE_BUMPER_DATA": (1, 2, 3, 4),
+    "GET_CHARGER_DATA": "charger",
+    "SET_V_AND_GET_DEADRECKON": (13, 17),
+    "POLL_BASE_CMD": (0, 2),
+    "HEALTH_GET_HEALTH": (2,),
+    "HEALTH_GET_ERROR": (36,),
+    "SET_BASE_MOTOR": (0,),
+    "POLL_BASE_ANS_CMD": (0,),
+    "SEND_EVENT": (0,),
+    "HEALTH_CLR_ERROR": (0,),
+    "BASE_CMD": (0,),
+}
+
+
+NO_REQUEST_TEXT = "no request outstanding: an OK payload can only be read knowing its request"
+
+
+def ok_size_fits(name: str | None, payload: bytes) -> bool:
+    """Whether an OK answer of `payload` can answer the request `name` by its size (True for a
+    request of unknown kind, or one without an OK answer layout: nothing tells)."""
+    sizes = OK_SIZES.get(name or "")
+    if sizes is None:
+        return True
+    if sizes == "blob":
+        return True  # a blob of any size (the codec takes even an empty one)
+    if sizes == "charger":
+        return len(payload) >= 2 and len(payload) == 2 + payload[1]
+    return len(payload) in sizes
 
 
 def parse_sender(text: str) -> Direction:
@@ -330,8 +378,8 @@ class Annotator:
         self._max_frame = max_frame
         StreamDecoder(max_frame=max_frame)  # check max_frame now rather than at the first feed
         self._streams: dict[Direction | None, _Stream] = {}
-        self._outstanding: _Outstanding | None = None
-        self._answers_seen = False  # "got no answer" only means something once answers are seen
+        self._waiting: list[_Outstanding] = []  # requests that may still be answered, oldest first
+        self._answers_seen = False  # "no answer yet" only means something once answers are seen
         self._seq = 0
 
     def stats(self, direction: Direction | None = None) -> DecoderStats:
@@ -503,7 +551,7 @@ class Annotator:
         if frame.cmd in _ANSWER_CMDS:
             return self._answer(seq, frame, None, time)
         if frame.cmd in _COPY_CMDS:
-            pending = self._outstanding
+            pending = self._waiting[-1] if self._waiting else None
             if pending is not None and pending.frame == frame:  # Frame equality includes the type
                 note = "ambiguous without a direction: a copy of the request before it, read as its answer"
                 return self._answer(seq, frame, None, time, ambiguous=note)
@@ -511,13 +559,36 @@ class Annotator:
             return self._request(seq, frame, None, time, ambiguous=note)
         return self._request(seq, frame, None, time)
 
+    def _expire_waiting(self, time: float | None) -> None:
+        """Requests sent more than PAIR_WINDOW_S before `time` are no longer answered."""
+        if time is not None:
+            self._waiting = [
+                item for item in self._waiting if item.time is None or time - item.time <= PAIR_WINDOW_S
+            ]
+
+    def _pair(self, frame: Frame) -> _Outstanding | None:
+        """The request answer `frame` answers: the newest waiting one it fits (None: none)."""
+        line_fault = (
+            frame.cmd == Response.ERROR
+            and len(frame.payload) == 2
+            and int.from_bytes(frame.payload, "little") < LINE_FAULT_LIMIT
+        )
+        if line_fault:
+            return self._waiting[-1] if self._waiting else None
+        for request in reversed(self._waiting):
+            if _fits(request, frame):
+                return request
+        return None
+
     def _request(
         self, seq: int, frame: Frame, direction: Direction | None, time: float | None, ambiguous: str = ""
     ) -> FrameNote:
         notes: list[str] = [ambiguous] if ambiguous else []
-        previous = self._outstanding
+        previous = self._waiting[-1] if self._waiting else None
         if previous is not None and self._answers_seen:
-            notes.append(f"the {previous.name or 'request'} at offset {previous.frame.offset} got no answer")
+            notes.append(
+                f"the {previous.name or 'request'} at offset {previous.frame.offset} has no answer yet"
+            )
         name = request_name(frame)
         message: RequestMessage | None = None
         error = error_message = None
@@ -525,7 +596,8 @@ class Annotator:
             message = decode_request(frame.cmd, frame.payload)
         except MessageError as exc:
             error, error_message = _error_kind(exc), str(exc)
-        self._outstanding = _Outstanding(name, frame, direction, time)
+        self._waiting.append(_Outstanding(name, frame, direction, time))
+        del self._waiting[:-PAIR_DEPTH]
         return FrameNote(
             seq,
             direction,
@@ -545,7 +617,9 @@ class Annotator:
         self, seq: int, frame: Frame, direction: Direction | None, time: float | None, ambiguous: str = ""
     ) -> FrameNote:
         notes: list[str] = [ambiguous] if ambiguous else []
-        pending = self._outstanding
+        self._expire_waiting(time)
+        pending = self._pair(frame)
+        waiting = list(self._waiting)
         self._answers_seen = True
         line_fault = (
             frame.cmd == Response.ERROR
@@ -560,7 +634,10 @@ class Annotator:
                 notes.append("answers bytes on the line, not a request")
         elif pending is not None:
             to, request_offset, request_time = pending.name, pending.frame.offset, pending.time
-            self._outstanding = None
+            del self._waiting[: self._waiting.index(pending) + 1]  # a base answers in order
+            if pending is not waiting[-1]:
+                newer = ", ".join(item.name or "a request" for item in waiting[waiting.index(pending) + 1 :])
+                notes.append(f"a late answer: it fits {pending.name or 'the request'}, not the newer {newer}")
             if frame.cmd in _COPY_CMDS and pending.frame != frame:
                 notes.append("not a copy of the request")
         name = _answer_name(frame.cmd)
@@ -569,11 +646,20 @@ class Annotator:
         try:
             if frame.cmd == Response.OK and to is None:
                 error = "unpaired"
-                error_message = (
-                    "no request outstanding: an OK payload can only be read knowing its request"
-                    if pending is None or line_fault
-                    else "answers a request of unknown kind: the OK payload cannot be read"
-                )
+                if line_fault or not waiting:
+                    error_message = (
+                        "no request outstanding: an OK payload can only be read knowing its request"
+                    )
+                elif pending is None:
+                    error_message = "fits no outstanding request: " + "; ".join(
+                        f"{item.name} (offset {item.frame.offset}) is not answered by {len(frame.payload)} "
+                        "OK payload bytes"
+                        for item in reversed(waiting)
+                    )
+                    waiting_names = ", ".join(item.name or "a request of unknown kind" for item in waiting)
+                    notes.append(f"unpaired: it fits none of the waiting requests ({waiting_names})")
+                else:
+                    error_message = "answers a request of unknown kind: the OK payload cannot be read"
                 guess = guess_request(frame.payload)
                 if guess is not None:
                     message = decode_answer(guess, frame.cmd, frame.payload)
@@ -587,7 +673,7 @@ class Annotator:
         except MessageError as exc:
             error, error_message = _error_kind(exc), str(exc)
         if pending is None and not line_fault and error != "unpaired":
-            notes.append("no request outstanding")
+            notes.append("no request outstanding" if not waiting else "fits no outstanding request")
         return FrameNote(
             seq,
             direction,
@@ -606,6 +692,15 @@ class Annotator:
             notes=tuple(notes),
             guess=guess,
         )
+
+
+def _fits(request: _Outstanding, frame: Frame) -> bool:
+    """Whether answer `frame` can be the answer to `request` (order and timing aside)."""
+    if frame.cmd in _COPY_CMDS:
+        return request.frame.cmd == frame.cmd  # (a SYNC or ECHO that is no copy is flagged as such)
+    if frame.cmd == Response.OK:
+        return request.frame.cmd not in _COPY_CMDS and ok_size_fits(request.name, frame.payload)
+    return True  # ERROR and INVALID answer any request
 
 
 def guess_request(payload: bytes) -> str | None:

@@ -237,6 +237,41 @@ OK_ANSWERS = ('BASE_CMD', 'CONNECT_BASE', 'GET_BASE_CONF', 'GET_BASE_CONF_ADV', 
               'HEALTH_CLR_ERROR')
 
 
+# Pairing by order, timing and size, as `ctrlbus decode` (ctrlbus.annotate): the requests waiting
+# are the last PAIR_DEPTH ones, none older than PAIR_WINDOW_S; an answer goes to the newest one it
+# fits, and that one and every older one stop waiting. OK payload sizes per request:
+PAIR_DEPTH = 4
+PAIR_WINDOW_S = 1.0
+OK_SIZES = {
+    'CONNECT_BASE': (28, 39), 'GET_BASE_CONF': (264,), 'GET_BASE_CONF_ADV': 'blob',
+    'GET_BASE_STATUS': (2,), 'GET_BASE_MOTOR_DATA': (9,), 'GET_BASE_SENSOR_DATA': (64,),
+    'GET_BASE_BUMPER_DATA': (1, 2, 3, 4), 'GET_CHARGER_DATA': 'charger',
+    'SET_V_AND_GET_DEADRECKON': (13, 17), 'POLL_BASE_CMD': (0, 2), 'HEALTH_GET_HEALTH': (2,),
+    'HEALTH_GET_ERROR': (36,), 'SET_BASE_MOTOR': (0,), 'POLL_BASE_ANS_CMD': (0,), 'SEND_EVENT': (0,),
+    'HEALTH_CLR_ERROR': (0,), 'BASE_CMD': (0,),
+}
+
+
+def ok_size_fits(name, payload):
+    sizes = OK_SIZES.get(name or '')
+    if sizes is None:
+        return True
+    if sizes == 'blob':
+        return True
+    if sizes == 'charger':
+        return len(payload) >= 2 and len(payload) == 2 + payload[1]
+    return len(payload) in sizes
+
+
+def answer_fits(request, cmd, payload):
+    '''Whether an answer (cmd, payload) can answer `request` = (name, cmd, raw, time).'''
+    if cmd in (0x00, 0x01):
+        return request[1] == cmd
+    if cmd == 0x02:
+        return request[1] not in (0x00, 0x01) and ok_size_fits(request[0], payload)
+    return True
+
+
 def guess_request(payload):
     found = []
     for name in OK_ANSWERS:
@@ -524,8 +559,7 @@ class Decoder(srd.Decoder):
     def reset(self):
         self.samplerate = None
         self.streams = None
-        self.outstanding = None  # name of the request waiting for its answer (may be None)
-        self.waiting = False
+        self.waiting = []  # (name, cmd, raw, time) of the requests waiting for an answer, oldest first
 
     def metadata(self, key, value):
         if key == srd.SRD_CONF_SAMPLERATE:
@@ -603,6 +637,9 @@ class Decoder(srd.Decoder):
         self.put_ann(side, 0, frame[-1][1], frame[-1][2],
                      ['checksum 0x%02X' % frame[-1][0], 'checksum', 'X'])
 
+    def frame_time(self, frame):
+        return frame[-1][1] / float(self.samplerate) if self.samplerate else None
+
     def show_frame(self, side, frame):
         self.show_parts(side, frame)
         header = 2 if frame[0][0] == FLAG_STANDARD else 3
@@ -621,16 +658,24 @@ class Decoder(srd.Decoder):
                 error = 'format'
             except Unsupported:
                 error = 'unsupported'
-            self.outstanding, self.waiting = name, True
+            raw = bytes(value for value, _, _ in frame)
+            self.waiting = (self.waiting + [(name, cmd, raw, self.frame_time(frame))])[-PAIR_DEPTH:]
         else:
             name = RESPONSES.get(cmd)
             label = name or '0x%02X' % cmd
             line_fault = cmd == 0x03 and len(payload) == 2 and \
                 (payload[0] | payload[1] << 8) < LINE_FAULT_LIMIT
             to = None
-            if self.waiting and not line_fault:
-                to = self.outstanding
-                self.waiting = False
+            now = self.frame_time(frame)
+            if now is not None:
+                self.waiting = [item for item in self.waiting
+                                if item[3] is None or now - item[3] <= PAIR_WINDOW_S]
+            if not line_fault:
+                for index in range(len(self.waiting) - 1, -1, -1):
+                    if answer_fits(self.waiting[index], cmd, payload):
+                        to = self.waiting[index][0]
+                        del self.waiting[:index + 1]
+                        break
                 if to is not None:
                     label += ' to ' + to
             context = 'OK to %s' % to if cmd == 0x02 else label.split(' ')[0]

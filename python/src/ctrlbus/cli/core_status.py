@@ -15,6 +15,7 @@ from ctrlbus.core.session import CoreSession
 from ctrlbus.web.snapshot import dashboard_snapshot
 
 __all__ = [
+    "BLOB_NOTES",
     "SCREEN_EVENTS",
     "SCREEN_HOME_CLEAR",
     "json_status",
@@ -25,6 +26,13 @@ __all__ = [
 # ANSI: cursor home, then clear to the end of the screen (redraw in place without scrolling).
 SCREEN_HOME_CLEAR = "\x1b[H\x1b[J"
 SCREEN_EVENTS = 8
+# What the base line adds about the 0x21 blob (dashboard `base.blob`); "not supported" is the
+# base's ordinary ERROR 0x8000, an expected fallback, never counted among the errors.
+BLOB_NOTES = {
+    "not_supported": "; 0x21 not supported: fallback, not an error",
+    "unusable": "; the 0x21 blob is unusable",
+    "pending": "; the 0x21 blob did not arrive intact yet, asked again while polling",
+}
 
 
 def json_status(session: CoreSession, since_seq: int = 0) -> dict[str, Any]:
@@ -49,6 +57,8 @@ def json_status(session: CoreSession, since_seq: int = 0) -> dict[str, Any]:
         "bumpers_pressed": [bumper["pressed"] for bumper in snap["bumpers"]],
         "cliffs_triggered": [cliff["triggered"] for cliff in snap["cliffs"]],
         "distances_mm": [sensor["distance_mm"] for sensor in snap["sensors"]],
+        "ignored_sensors": snap["ignored_sensors"],
+        "warnings": snap["warnings"],
         "charger_probes": None if snap["charger"] is None else snap["charger"]["probes"],
         "health": {"flags": snap["health"]["flags"], "errors": snap["health"]["errors"]},
         "link": {
@@ -117,7 +127,8 @@ def render_screen(session: CoreSession, note: str | None = None) -> str:
         lines.append(
             f"base      {base['model']!r} firmware {base['firmware_version']} "
             f"hardware {base['hardware_version']} serial {base['serial']}  "
-            f"{base['shape']} r {base['radius_mm']:.0f} mm ({base['config_source']})"
+            f"{base['shape']} r {base['radius_mm']:.0f} mm ({base['config_source']}"
+            f"{BLOB_NOTES.get(base['blob'], '')})"
         )
         for source, view in base["views"].items():
             lines.append(
@@ -148,6 +159,11 @@ def render_screen(session: CoreSession, note: str | None = None) -> str:
     )
     distances = [_number(sensor["distance_mm"], 0) for sensor in snap["sensors"]]
     lines.append(f"sensors   {' '.join(distances) or '-'} mm")
+    ignored = [f"{item['slot']}: {_number(item['distance_mm'], 0)}" for item in snap["ignored_sensors"]]
+    if ignored:
+        lines.append(f"ignored   {', '.join(ignored)} mm (channel: reading; a real Core ignores them)")
+    for warning in snap["warnings"]:
+        lines.append(f"WARNING   {warning}")
     charger = snap["charger"]
     probes = "-" if charger is None else " ".join(f"0x{probe:02X}" for probe in charger["probes"])
     lines.append(f"charger   probes {probes}")

@@ -2,7 +2,8 @@
 """`ctrlbus sim`: serve the simulated base (a differential-drive robot in a room) on a link.
 
     ctrlbus sim --pty | --listen HOST:PORT | --port URL [--config FILE] [--room FILE]
-                [--binary-config FILE] [--profile reference|sdk2020] [--time-scale X] [--seed N]
+                [--binary-config FILE | --no-binary-config] [--profile reference|sdk2020]
+                [--time-scale X] [--seed N]
                 [--watchdog-ms N] [--frame-timeout-ms N] [--max-wheel-speed MM_S]
                 [--reference-checksum] [--quirks none|reference]
 
@@ -60,7 +61,13 @@ def register(subparsers: Any) -> None:
         "--binary-config",
         metavar="FILE",
         help="JSON binary configuration (see `ctrlbus config example`) served for GET_BASE_CONF_ADV "
-        "(0x21); without it 0x21 is answered ERROR 0x8000 and the Core uses GET_BASE_CONF",
+        "(0x21) (default: one made from the base description, every sensor included)",
+    )
+    parser.add_argument(
+        "--no-binary-config",
+        action="store_true",
+        help="serve no binary configuration: 0x21 is answered ERROR 0x8000 and the Core falls back "
+        "to GET_BASE_CONF (to exercise that fallback)",
     )
     profile = parser.add_argument(
         "--profile",
@@ -150,6 +157,8 @@ def settings_from_args(args: argparse.Namespace) -> SimSettings:
     max_wheel = None if args.max_wheel_speed is None else _number("--max-wheel-speed", args.max_wheel_speed)
     if max_wheel is not None and not 0 <= max_wheel < float("inf"):
         raise UsageError(f"--max-wheel-speed wants a number of mm/s >= 0, got {args.max_wheel_speed!r}")
+    if args.binary_config is not None and args.no_binary_config:
+        raise UsageError("--binary-config and --no-binary-config exclude each other")
     seed = None if args.seed is None else _integer("--seed", args.seed)
     if seed is not None and seed < 0:
         raise UsageError(f"--seed wants an integer >= 0, got {args.seed!r}")
@@ -157,6 +166,7 @@ def settings_from_args(args: argparse.Namespace) -> SimSettings:
         config=args.config,
         room=args.room,
         binary_config=args.binary_config,
+        serve_binary_config=not args.no_binary_config,
         profile=args.profile,
         time_scale=_number("--time-scale", args.time_scale),
         seed=seed,

@@ -117,6 +117,10 @@ class CoreConfig:
     retries: int = 2  # §11.6: after 1 + retries silent attempts in a row the base is disconnected
     line_fault_attempts: int = 16  # §11.6: failed attempts in a row (no answer at all) before it is lost
     read_both_configs: bool = True  # §11.2: after a usable 0x21 blob, ask 0x20 too (to show both views)
+    # §11.2 [core-config-retry]: attempts at the blob (and at 0x20 as a second view) while
+    # connecting; then the Core goes on with what it has and asks again while polling.
+    config_attempts: int = 2
+    config_retry_s: float = 2.0  # first wait before asking again while polling (doubling, up to 4 s)
     connect_interval_s: float = 0.5  # §11.1: CONNECT_BASE every 500 ms until answered
     flush_sync: bool = True  # §11.1: a 512-byte SYNC after each unanswered CONNECT_BASE
     decoder_timeout_s: float = 0.1  # §7.6: host-side inter-byte timeout
@@ -145,8 +149,17 @@ class CoreConfig:
         attempts = self.line_fault_attempts
         if isinstance(attempts, bool) or not isinstance(attempts, int) or not 1 <= attempts <= 1000:
             raise UsageError(f"CoreConfig.line_fault_attempts must be an integer 1..1000, got {attempts!r}")
+        if (
+            isinstance(self.config_attempts, bool)
+            or not isinstance(self.config_attempts, int)
+            or not 1 <= self.config_attempts <= 100
+        ):
+            raise UsageError(
+                f"CoreConfig.config_attempts must be an integer 1..100, got {self.config_attempts!r}"
+            )
         positive = (
             "request_timeout_s",
+            "config_retry_s",
             "connect_interval_s",
             "watchdog_s",
             "max_vx_mps",

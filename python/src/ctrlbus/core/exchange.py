@@ -26,6 +26,7 @@ from ctrlbus.messages import (
     Cmd,
     ErrorAnswer,
     ErrorCode,
+    GetBaseConfAdv,
     InvalidAnswer,
     RequestMessage,
     Response,
@@ -35,6 +36,7 @@ from ctrlbus.messages import (
 )
 
 __all__ = [
+    "CONFIG_READS",
     "FLUSH_FILLER",
     "TRACKED_PURPOSES",
     "Exchange",
@@ -57,12 +59,20 @@ class Purpose(enum.Enum):
     CONFIG = "config"
     SYSTEM_UP = "system_up"
     POLL = "poll"
+    CONFIG_LATER = "config_later"  # a configuration read asked again while polling (§11.2)
     NOTICE = "notice"  # CORE_DISCONNECT after a lost connection: one attempt, best effort
     STOP = "stop"  # CORE_DISCONNECT when stopped on purpose
 
 
 # Requests whose fate is accounted (answered, superseded, abandoned at a disconnect, or lost).
-TRACKED_PURPOSES = frozenset({Purpose.CONFIG_ADV, Purpose.CONFIG, Purpose.SYSTEM_UP, Purpose.POLL})
+TRACKED_PURPOSES = frozenset(
+    {Purpose.CONFIG_ADV, Purpose.CONFIG, Purpose.CONFIG_LATER, Purpose.SYSTEM_UP, Purpose.POLL}
+)
+# Configuration reads: their answers are the largest (0x21 up to 507 bytes, 0x20 264), so on a
+# noisy line they arrive damaged far more often than the rest. A failed attempt in which the base
+# was heard counts toward no disconnect limit; each read has its own attempt limit, after which
+# the Core falls back or goes on, and asks again while polling (§11.2 [core-config-retry]).
+CONFIG_READS = frozenset({Purpose.CONFIG_ADV, Purpose.CONFIG, Purpose.CONFIG_LATER})
 
 
 @dataclass
@@ -78,6 +88,8 @@ class Outstanding:
     deadline: float = 0.0
     resend: bool = False  # a failed attempt: send again at the next poll()
     transport_error: str | None = None  # a line-fault ERROR seen; the real answer may still follow
+    heard: bool = False  # bytes arrived during this attempt (the base is there)
+    damaged: bool = False  # the decoder rejected a frame during this attempt (a damaged answer)
     schedule_name: str | None = None
 
 
@@ -195,6 +207,7 @@ class Exchange:
         outstanding.attempts += 1
         outstanding.resend = False
         outstanding.transport_error = None
+        outstanding.heard = outstanding.damaged = False
         outstanding.sent_at = now
         wire_time = len(outstanding.frame) * self._config.byte_time_s
         outstanding.deadline = now + wire_time + self._config.request_timeout_s
@@ -227,12 +240,17 @@ class Exchange:
         periodic one whose next period has come (`period_due`) is superseded by it instead; the
         base counts as disconnected after `1 + retries` silent attempts in a row, or
         `line_fault_attempts` failed attempts in a row without an answer. CONNECT_BASE,
-        CORE_DISCONNECT and the flush have their own attempt limits (§11.1, §11.7)."""
+        CORE_DISCONNECT and the flush have their own attempt limits (§11.1, §11.7), and so have
+        the configuration reads (CONFIG_READS), whose failed attempts count toward a disconnect
+        only when silent (§11.2 [core-config-retry])."""
         config = self._config
         if silent:
             self._silent_streak += 1
             self._flush_pending = config.flush_sync
-        if outstanding.purpose in TRACKED_PURPOSES:
+        if outstanding.purpose in CONFIG_READS and not silent:
+            # The base was heard (a damaged answer, a line fault): no step towards a disconnect.
+            return self._retry_or_give_up(outstanding, reason)
+        if outstanding.purpose in TRACKED_PURPOSES and outstanding.purpose not in CONFIG_READS:
             self._failed_streak += 1
             too_silent = self._silent_streak >= 1 + config.retries
             too_faulty = self._failed_streak >= config.line_fault_attempts
@@ -254,6 +272,20 @@ class Exchange:
             )
             self._log("core", f"{reason}: {what}, base disconnected")
             return Verdict.DISCONNECTED
+        if outstanding.purpose in CONFIG_READS:
+            self._failed_streak += 1  # silent: the base may be gone
+            if self._silent_streak >= 1 + config.retries or self._failed_streak >= config.line_fault_attempts:
+                self._outstanding = None
+                self._stats.disconnects += 1
+                self._stats.abandoned_at_disconnect += 1
+                self._log(
+                    "core", f"{reason}: {self._silent_streak} attempts in a row unanswered, base disconnected"
+                )
+                return Verdict.DISCONNECTED
+        return self._retry_or_give_up(outstanding, reason)
+
+    def _retry_or_give_up(self, outstanding: Outstanding, reason: str) -> Verdict:
+        """Send again while the request has attempts left, else give it up."""
         if outstanding.attempts < outstanding.max_attempts:
             outstanding.resend = True
             attempt = f"attempt {outstanding.attempts}/{outstanding.max_attempts}"
@@ -275,6 +307,18 @@ class Exchange:
         self._silent_streak = self._failed_streak = 0
 
     # =============================================================================== frames
+
+    def on_bytes(self, now: float, *, rejected: bool) -> None:
+        """Bytes arrived at `now`; `rejected`: the decoder threw a frame away among them. For a
+        configuration read a rejected frame is most likely its damaged answer (the base answers
+        once): the attempt then ends after the grace instead of the full timeout."""
+        outstanding = self._outstanding
+        if outstanding is None or outstanding.resend:
+            return
+        outstanding.heard = True
+        if rejected and outstanding.purpose in CONFIG_READS:
+            outstanding.damaged = True
+            outstanding.deadline = min(outstanding.deadline, now + self._config.transport_error_grace_s)
 
     def on_frame(self, frame: Frame, now: float, *, connecting: bool) -> Reply | None:
         """A frame from the base at `now` (`connecting`: in the CONNECT_BASE loop). Returns what
@@ -311,7 +355,10 @@ class Exchange:
             return Reply(outstanding, None, f"malformed answer to {request.NAME}")
         if isinstance(answer, ErrorAnswer):
             code = answer.error_code
-            stats.errors_by_code[code] += 1
+            if code == ErrorCode.UNSUPPORTED and isinstance(request, GetBaseConfAdv):
+                stats.unsupported_conf_adv += 1  # the base has no blob: an expected fallback
+            else:
+                stats.errors_by_code[code] += 1
             if code < LINE_FAULT_LIMIT:
                 stats.count_line_fault(code)
             if code == ErrorCode.NOT_SYNCED:

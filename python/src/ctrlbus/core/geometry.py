@@ -31,6 +31,7 @@ __all__ = [
     "Mount",
     "geometry_from_conf",
     "geometry_from_tree",
+    "shared_bits",
 ]
 
 SOURCE_CONF = "GET_BASE_CONF"
@@ -143,8 +144,9 @@ def geometry_from_tree(tree: Mapping[str, JsonValue]) -> BaseGeometry | None:
 
     `robot_size` is read as the diameter in metres, `sensors[]` entries by their `type`: bumpers and
     cliffs by name, anything else is a distance sensor. An entry's `id` is its slot (distance
-    sensors) or bit (bumpers); cliff ids count from the bit after the last bumper, as the
-    reference lays its bitmap out. Entries without an id take their order.
+    sensors) or bit in GET_BASE_BUMPER_DATA's bitmap (bumpers and cliffs alike: the reference's
+    blob gives its cliffs ids 2-5, the bits protocol §5.7 puts them in). Distance sensors and
+    bumpers without an id take their order; cliffs without one the free bits after the bumpers.
     """
     base = tree.get("base")
     if not isinstance(base, dict):
@@ -173,16 +175,18 @@ def geometry_from_tree(tree: Mapping[str, JsonValue]) -> BaseGeometry | None:
         Bumper(mount, ident if ident is not None and 0 <= ident < BUMPER_BITS else order)
         for order, (mount, ident) in enumerate(bumper_entries)
     )
-    first_cliff = len(bumpers)
-    cliffs = tuple(
-        sorted(
-            {
-                first_cliff + (ident if ident is not None and ident >= 0 else order)
-                for order, ident in enumerate(cliff_entries)
-            }
-            & set(range(BUMPER_BITS))
-        )
-    )
+    # A cliff sensor's id is its bit, as a bumper's is: the reference's own blob numbers its cliffs
+    # 2-5, the bits its bitmap carries them in (protocol §5.7). One without a usable id takes the
+    # next bit after the bumpers (and the cliffs with ids) that is still free.
+    cliff_set = {ident for ident in cliff_entries if ident is not None and 0 <= ident < BUMPER_BITS}
+    after_bumpers = 1 + max((bumper.bit for bumper in bumpers), default=-1)
+    free = (bit for bit in range(after_bumpers, BUMPER_BITS) if bit not in cliff_set)
+    for ident in cliff_entries:
+        if ident is None or not 0 <= ident < BUMPER_BITS:
+            bit = next(free, None)
+            if bit is not None:
+                cliff_set.add(bit)
+    cliffs = tuple(sorted(cliff_set))
     return BaseGeometry(
         source=SOURCE_CONF_ADV,
         shape="circle",
@@ -191,6 +195,12 @@ def geometry_from_tree(tree: Mapping[str, JsonValue]) -> BaseGeometry | None:
         bumpers=bumpers,
         cliff_bits=cliffs,
     )
+
+
+def shared_bits(geometry: BaseGeometry) -> tuple[int, ...]:
+    """Bitmap bits that are both a bumper's and a cliff's: a blob that numbers its cliffs from 0
+    (as ctrlbus's own example did before issue 23) instead of by their bits."""
+    return tuple(sorted({bumper.bit for bumper in geometry.bumpers} & set(geometry.cliff_bits)))
 
 
 # How far the two sources may differ before it counts as a disagreement: the blob's float metres

@@ -19,13 +19,15 @@ from ctrlbus import binconf
 from ctrlbus.core.actions import Action
 from ctrlbus.core.config import CoreConfig
 from ctrlbus.core.events import command_name, describe_request
-from ctrlbus.core.exchange import Exchange, Outstanding, Purpose, Verdict
+from ctrlbus.core.exchange import CONFIG_READS, Exchange, Outstanding, Purpose, Verdict
 from ctrlbus.core.geometry import (
+    SOURCE_CONF,
     SOURCE_CONF_ADV,
     BaseGeometry,
     compare_geometries,
     geometry_from_conf,
     geometry_from_tree,
+    shared_bits,
 )
 from ctrlbus.core.health import HealthReader
 from ctrlbus.core.journal import Journal
@@ -33,7 +35,15 @@ from ctrlbus.core.motion import MotionControl, action_for_command
 from ctrlbus.core.readings import apply_reading
 from ctrlbus.core.schedule import PollSchedule
 from ctrlbus.core.stats import LinkStats
-from ctrlbus.core.telemetry import BaseIdentity, BaseTelemetry, ConnectionState, HealthError
+from ctrlbus.core.telemetry import (
+    BLOB_NOT_SUPPORTED,
+    BLOB_PENDING,
+    BLOB_UNUSABLE,
+    BaseIdentity,
+    BaseTelemetry,
+    ConnectionState,
+    HealthError,
+)
 from ctrlbus.errors import BinaryConfigError
 from ctrlbus.frame import Frame
 from ctrlbus.messages import (
@@ -42,6 +52,7 @@ from ctrlbus.messages import (
     ConnectBase,
     ConnectBaseAnswer,
     ErrorAnswer,
+    ErrorCode,
     Event,
     ExternalCommand,
     GetBaseConf,
@@ -58,7 +69,13 @@ from ctrlbus.messages import (
     SendEvent,
 )
 
-__all__ = ["CoreProtocol"]
+__all__ = ["CONFIG_RETRY_MAX_S", "PRIMARY_CONF_ATTEMPTS", "CoreProtocol"]
+
+# §11.2 [core-config-retry]: GET_BASE_CONF as the only geometry is asked this many times while
+# connecting (each failure in which the base was heard counts toward no disconnect) before the
+# Core goes on without a geometry; later asks while polling wait up to this long apart.
+PRIMARY_CONF_ATTEMPTS = 64
+CONFIG_RETRY_MAX_S = 4.0
 
 
 class _Step(enum.Enum):
@@ -101,6 +118,10 @@ class CoreProtocol:
         self._stop_requested = False
         self._last_ctrl_sent: float | None = None
         self._offered_command: int | None = None
+        # §11.2 [core-config-retry]: configuration reads to ask again while polling.
+        self._later: list[Purpose] = []  # CONFIG_ADV and/or CONFIG, in that order
+        self._later_at = 0.0
+        self._later_wait_s = config.config_retry_s
 
     def begin(self, now: float) -> None:
         """The session's first time: the state dates from it, and CONNECT_BASE is due."""
@@ -147,7 +168,10 @@ class CoreProtocol:
             return self._next_connect_at if self._next_connect_at is not None else now
         if step is not _Step.POLLING:
             return now
-        return self._schedule.due_time(now, docking=self._motion.docking)
+        due = self._schedule.due_time(now, docking=self._motion.docking)
+        if self._later:
+            return self._later_at if due is None else min(due, self._later_at)
+        return due
 
     def next_request(self, now: float) -> bytes | None:
         """The next request frame to send at `now`, or None."""
@@ -176,11 +200,19 @@ class CoreProtocol:
         if step is _Step.CONNECT:
             return self._connect_request(now)
         if step is _Step.CONFIG_ADV:
-            return exchange.start(GetBaseConfAdv(), Purpose.CONFIG_ADV, now)
+            return exchange.start(
+                GetBaseConfAdv(), Purpose.CONFIG_ADV, now, attempts=self._config.config_attempts
+            )
         if step is _Step.CONFIG:
-            return exchange.start(GetBaseConf(), Purpose.CONFIG, now)
+            # As the only geometry it is asked until answered (while the base is heard); as the
+            # second view, beside a blob, as often as the blob.
+            attempts = self._config.config_attempts if self._telemetry.configured else PRIMARY_CONF_ATTEMPTS
+            return exchange.start(GetBaseConf(), Purpose.CONFIG, now, attempts=attempts)
         if step is _Step.SYSTEM_UP:
             return exchange.start(SendEvent(Event.SYSTEM_UP_OK), Purpose.SYSTEM_UP, now)
+        if self._later and now >= self._later_at:
+            later = GetBaseConfAdv() if self._later[0] is Purpose.CONFIG_ADV else GetBaseConf()
+            return exchange.start(later, Purpose.CONFIG_LATER, now, attempts=1, quiet=True)
         # Polling: follow-ups first (POLL_BASE_ANS_CMD, HEALTH_GET_ERROR), then the schedule.
         due = self._schedule.take_due(now, docking=self._motion.docking)
         if due is None:
@@ -236,6 +268,12 @@ class CoreProtocol:
             self._failed_attempt(outstanding, outstanding.transport_error, now, silent=False)
             return
         self._stats.timeouts += 1
+        if purpose in CONFIG_READS and (outstanding.damaged or outstanding.heard):
+            # The base answered, but nothing intact came of it: a damaged answer, not silence.
+            self._stats.damaged_config_answers += 1
+            what = f"answer to {describe_request(outstanding.message)} arrived damaged"
+            self._failed_attempt(outstanding, what, now, silent=False)
+            return
         self._failed_attempt(
             outstanding, f"no answer to {describe_request(outstanding.message)}", now, silent=True
         )
@@ -262,6 +300,9 @@ class CoreProtocol:
             self._enter_connect_loop(now)
         elif purpose is Purpose.CONNECT:
             self._schedule_next_connect(now)
+        elif purpose in CONFIG_READS:
+            self._stats.superseded += 1  # its fallback, or its next ask while polling, replaces it
+            self._config_read_given_up(outstanding, reason, now)
         else:
             # A request that matters given up while the base still counts as connected.
             self._stats.lost_requests += 1
@@ -296,6 +337,7 @@ class CoreProtocol:
         self._health.forget()
         self._last_ctrl_sent = None
         self._telemetry.configured = False
+        self._later = []
         if notify_base:
             self._step = _Step.NOTICE
         else:
@@ -324,6 +366,11 @@ class CoreProtocol:
         self._state_reason = reason
 
     # ============================================================================== answers
+
+    def heard(self, now: float, *, rejected: bool) -> None:
+        """Bytes from the base arrived at `now`, after their frames were handled; `rejected`: the
+        decoder threw one away among them."""
+        self._exchange.on_bytes(now, rejected=rejected)
 
     def on_frame(self, frame: Frame, now: float) -> None:
         """A frame from the base at `now`."""
@@ -355,6 +402,8 @@ class CoreProtocol:
                 self._log("core", "no configuration from the base: going on without its geometry")
                 self._use_geometry(None)
             self._step = _Step.SYSTEM_UP
+        elif purpose is Purpose.CONFIG_LATER:
+            self._on_config_later(answer, now)
         elif purpose is Purpose.SYSTEM_UP:
             self._on_system_up(now)
         elif purpose is Purpose.NOTICE:
@@ -385,11 +434,13 @@ class CoreProtocol:
                 tree = binconf.decode(answer.blob)
             except BinaryConfigError as exc:
                 self._log("core", f"binary configuration does not decode ({exc}): asking GET_BASE_CONF")
+                self._telemetry.blob_status = BLOB_UNUSABLE
                 self._step = _Step.CONFIG
                 return
             geometry = geometry_from_tree(tree)
             if geometry is None:
                 self._log("core", "binary configuration has no `base` object: asking GET_BASE_CONF")
+                self._telemetry.blob_status = BLOB_UNUSABLE
                 self._step = _Step.CONFIG
                 return
             self._log("base", f"binary configuration: {len(answer.blob)} bytes")
@@ -397,6 +448,81 @@ class CoreProtocol:
             self._step = _Step.CONFIG if self._config.read_both_configs else _Step.SYSTEM_UP
             return
         self._step = _Step.CONFIG  # ERROR 0x8000 (no blob), or any other refusal
+        self._note_refused_blob(answer)
+
+    def _note_refused_blob(self, answer: AnswerMessage) -> None:
+        """An ERROR to GET_BASE_CONF_ADV: 0x8000 is the base saying it has no blob, an expected
+        fallback that the telemetry shows apart from errors; other codes are refusals."""
+        if isinstance(answer, ErrorAnswer) and answer.error_code == ErrorCode.UNSUPPORTED:
+            self._telemetry.blob_status = BLOB_NOT_SUPPORTED
+            self._log(
+                "core", "the base serves no binary configuration (0x21 not supported): using GET_BASE_CONF"
+            )
+        else:
+            self._telemetry.blob_status = BLOB_UNUSABLE
+        self._journal.changed("base")
+
+    def _config_read_given_up(self, outstanding: Outstanding, reason: str, now: float) -> None:
+        """A configuration read used its attempts: fall back or go on, and ask again later."""
+        purpose = outstanding.purpose
+        is_blob = isinstance(outstanding.message, GetBaseConfAdv)
+        wanted = Purpose.CONFIG_ADV if is_blob else Purpose.CONFIG
+        if purpose is Purpose.CONFIG_LATER:
+            self._later_wait_s = min(CONFIG_RETRY_MAX_S, self._later_wait_s * 2)
+            self._later_at = now + self._later_wait_s
+            return
+        if wanted not in self._later:
+            self._later.append(wanted)
+            self._later.sort(key=lambda item: item is not Purpose.CONFIG_ADV)
+        self._later_wait_s = self._config.config_retry_s
+        self._later_at = now + self._later_wait_s
+        if is_blob:
+            self._telemetry.blob_status = BLOB_PENDING
+            self._log(
+                "core", f"{reason}: going on with GET_BASE_CONF, asking for the blob again while polling"
+            )
+            self._step = _Step.CONFIG
+        else:
+            if not self._telemetry.configured:
+                self._log(
+                    "core", f"{reason}: going on without the base's geometry, asking again while polling"
+                )
+                self._use_geometry(None)
+            else:
+                self._log("core", f"{reason}: asking again while polling")
+            self._step = _Step.SYSTEM_UP
+        self._journal.changed("base")
+
+    def _on_config_later(self, answer: AnswerMessage, now: float) -> None:
+        """The answer to a configuration read asked again while polling."""
+        wanted = self._later.pop(0) if self._later else None
+        self._later_wait_s = self._config.config_retry_s
+        self._later_at = now + self._later_wait_s
+        if wanted is Purpose.CONFIG_ADV:
+            if not isinstance(answer, GetBaseConfAdvAnswer):
+                self._note_refused_blob(answer)
+                return
+            try:
+                geometry = geometry_from_tree(binconf.decode(answer.blob))
+            except BinaryConfigError as exc:
+                geometry = None
+                self._log("core", f"binary configuration does not decode ({exc})")
+            if geometry is None:
+                self._telemetry.blob_status = BLOB_UNUSABLE
+                self._journal.changed("base")
+                return
+            self._log("base", f"binary configuration: {len(answer.blob)} bytes (asked again): using it")
+            conf = self._telemetry.views.get(SOURCE_CONF)
+            self._use_geometry(geometry)
+            if conf is not None:
+                self._note_second_view(conf)
+            return
+        if isinstance(answer, GetBaseConfAnswer):
+            conf_geometry = geometry_from_conf(answer)
+            if self._telemetry.geometry is None:
+                self._use_geometry(conf_geometry)
+            else:
+                self._note_second_view(conf_geometry)
 
     def _note_second_view(self, conf: BaseGeometry) -> None:
         self._telemetry.views[conf.source] = conf
@@ -407,6 +533,14 @@ class CoreProtocol:
         self._journal.changed("base")
 
     def _use_geometry(self, geometry: BaseGeometry | None) -> None:
+        shared = () if geometry is None else shared_bits(geometry)
+        if shared:
+            bits = ", ".join(map(str, shared))
+            self._log(
+                "core",
+                f"the configuration gives a bumper and a cliff sensor the same bit ({bits}): a cliff's "
+                "id is its bitmap bit (protocol §5.7: the reference's cliffs are 2-5)",
+            )
         self._telemetry.use_geometry(geometry)
         self._journal.changed("base")
 

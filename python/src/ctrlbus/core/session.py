@@ -53,7 +53,7 @@ from ctrlbus.core.telemetry import (
     LinkTelemetry,
 )
 from ctrlbus.errors import UsageError
-from ctrlbus.frame import StreamDecoder
+from ctrlbus.frame import EventKind, Frame, StreamDecoder
 from ctrlbus.kinematics import Pose
 
 # The session's own names, and the model's that its API returns (kept importable from here).
@@ -68,6 +68,10 @@ __all__ = [
     "HealthState",
     "describe_request",
 ]
+
+
+# Decoder rejections that a damaged answer leaves behind (a garbage byte alone does not count).
+DAMAGE_KINDS = frozenset({EventKind.CHECKSUM_ERROR, EventKind.OVERSIZE, EventKind.TIMEOUT})
 
 
 def _check_finite(**values: float) -> None:
@@ -107,8 +111,14 @@ class CoreSession:
         """Bytes read from the link at time `now`."""
         self._advance(now)
         self._protocol.expire(now)
-        for frame in self._decoder.feed(data, now):
-            self._protocol.on_frame(frame, now)
+        rejected = False
+        for item in self._decoder.feed_items(data, now):
+            if isinstance(item, Frame):
+                self._protocol.on_frame(item, now)
+            elif item.kind in DAMAGE_KINDS:
+                rejected = True
+        if data:
+            self._protocol.heard(now, rejected=rejected)
         self._journal.notify()
 
     def next_poll_time(self) -> float | None:

@@ -45,6 +45,8 @@ class LinkStats:
     stray_answers: int = 0  # frames that arrived while no request was outstanding
     not_synced_reports: int = 0  # ERROR 0x0010: bytes between frames reached the base
     flushed_frames: int = 0  # frames discarded after a flushing SYNC
+    damaged_config_answers: int = 0  # configuration reads answered, but nothing intact arrived
+    unsupported_conf_adv: int = 0  # ERROR 0x8000 to GET_BASE_CONF_ADV: no blob (not counted as an error)
     watchdog_trips: int = 0  # gaps > watchdog_s without a CTRL_BUS request to a connected base
     watchdog_reported: int = 0  # times the base's health list newly showed 0x01038000
     connect_attempts: int = 0  # CONNECT_BASE requests (unanswered ones are not counted as timeouts)

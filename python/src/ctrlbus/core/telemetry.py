@@ -30,13 +30,18 @@ from ctrlbus.constants import (
     POWER_DC_CONNECTED,
     POWER_ON_DOCK,
 )
-from ctrlbus.core.geometry import BaseGeometry
+from ctrlbus.core.geometry import SOURCE_CONF_ADV, BaseGeometry
 from ctrlbus.core.stats import LinkStats
 from ctrlbus.frame import DecoderStats
 from ctrlbus.kinematics import DeadreckonDelta, Pose, integrate_pose
 from ctrlbus.messages import ConnectBaseAnswer, GetChargerDataAnswer
 
 __all__ = [
+    "BLOB_NOT_SUPPORTED",
+    "BLOB_PENDING",
+    "BLOB_STATES",
+    "BLOB_UNUSABLE",
+    "BLOB_USED",
     "MAX_TRAIL_POINTS",
     "TRAIL_STEP_MM",
     "BaseIdentity",
@@ -50,6 +55,14 @@ __all__ = [
 
 MAX_TRAIL_POINTS = 2000
 TRAIL_STEP_MM = 10.0
+# What became of the GET_BASE_CONF_ADV blob (§11.2): in use; the base has none (ERROR 0x8000, an
+# expected fallback to GET_BASE_CONF, not a fault); refused otherwise or does not decode; or not
+# yet received intact on a noisy line (asked again while polling).
+BLOB_USED = "used"
+BLOB_NOT_SUPPORTED = "not_supported"
+BLOB_UNUSABLE = "unusable"
+BLOB_PENDING = "pending"
+BLOB_STATES = (BLOB_USED, BLOB_NOT_SUPPORTED, BLOB_UNUSABLE, BLOB_PENDING)
 
 
 class ConnectionState(StrEnum):
@@ -132,6 +145,8 @@ class BaseTelemetry:
     config_source: str | None = None
     # §11.2: each source's geometry, where known (the Core uses the blob's when it has one).
     views: dict[str, BaseGeometry] = field(default_factory=dict)
+    # What became of the 0x21 blob (None: not asked yet): one of BLOB_STATES.
+    blob_status: str | None = None
     pose: Pose = field(default_factory=lambda: Pose(0.0, 0.0, 0.0))
     trail: deque[tuple[float, float]] = field(
         default_factory=lambda: deque([(0.0, 0.0)], maxlen=MAX_TRAIL_POINTS)
@@ -149,6 +164,8 @@ class BaseTelemetry:
     def use_geometry(self, geometry: BaseGeometry | None) -> None:
         """The configuration step chose `geometry` (None: the base gave none)."""
         self.views = {} if geometry is None else {geometry.source: geometry}
+        if geometry is not None and geometry.source == SOURCE_CONF_ADV:
+            self.blob_status = BLOB_USED
         self.geometry = geometry
         self.config_source = None if geometry is None else geometry.source
         self.configured = True
@@ -259,6 +276,8 @@ class LinkTelemetry:
             "stray_answers": stats.stray_answers,
             "not_synced_reports": stats.not_synced_reports,
             "flushed_frames": stats.flushed_frames,
+            "damaged_config_answers": stats.damaged_config_answers,
+            "conf_adv_not_supported": stats.unsupported_conf_adv,
             "watchdog_reported": stats.watchdog_reported,
             "latency_samples": stats.latency_samples,
             "decoder": {

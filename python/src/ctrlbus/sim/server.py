@@ -35,6 +35,7 @@ from ctrlbus.link import DEFAULT_BAUD, Link, PtyLink, TcpServerLink
 from ctrlbus.ports import serve_link
 from ctrlbus.quirks import Quirks, parse_quirks
 from ctrlbus.sim.base import SimulatedBase
+from ctrlbus.sim.blob import blob_from_description
 from ctrlbus.sim.description import load_base_description
 from ctrlbus.sim.room import load_room
 from ctrlbus.sim.world import World
@@ -54,6 +55,9 @@ class SimSettings:
     config: str | Path | None = None  # base description (docs/simulator.md)
     room: str | Path | None = None
     binary_config: str | Path | None = None  # JSON configuration served for GET_BASE_CONF_ADV
+    # Without a file, serve the blob made from the base description (ctrlbus.sim.blob); False:
+    # none, ERROR 0x8000 to GET_BASE_CONF_ADV, to exercise the Core's fallback to GET_BASE_CONF.
+    serve_binary_config: bool = True
     profile: Profile | str = Profile.REFERENCE
     time_scale: float = 1.0
     seed: int | None = None
@@ -99,8 +103,12 @@ def build_simulated_stack(settings: SimSettings) -> tuple[SimulatedBase, BaseSta
     limit = settings.max_wheel_mm_s
     if limit is not None and not (math.isfinite(limit) and limit >= 0):
         raise UsageError(f"the wheel-speed limit must be a number of mm/s >= 0, got {limit:g}")
+    if settings.binary_config is not None and not settings.serve_binary_config:
+        raise UsageError("a binary configuration file and serving none contradict each other")
     blob = None if settings.binary_config is None else read_binary_config(settings.binary_config)
     world = World(load_base_description(settings.config), load_room(settings.room), seed=settings.seed)
+    if blob is None and settings.serve_binary_config:
+        blob = blob_from_description(world.base)
     config = BaseConfig(
         profile=parse_profile(settings.profile),
         watchdog_s=settings.watchdog_s,

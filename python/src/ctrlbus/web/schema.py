@@ -12,7 +12,7 @@ import math
 from typing import Any
 
 from ctrlbus.core.events import MAX_EVENTS  # the schema's limits are the Core's own
-from ctrlbus.core.telemetry import MAX_TRAIL_POINTS
+from ctrlbus.core.telemetry import BLOB_STATES, MAX_TRAIL_POINTS
 
 __all__ = [
     "COMMAND_MODES",
@@ -130,6 +130,7 @@ SNAPSHOT: Spec = {
                 "map",
                 {"radius_mm": "num", "distance_sensors": "int", "bumpers": "int", "cliffs": "int"},
             ),
+            "blob?": ("nullable", ("enum", BLOB_STATES)),
         },
     ),
     "limits": {"vx_mps": "num", "omega_radps": "num"},
@@ -154,6 +155,11 @@ SNAPSHOT: Spec = {
     "bumper_bitmap": "int?",
     "bumpers": ("list", {**MOUNT, "bit": "int", "pressed": "bool"}),
     "cliffs": ("list", {"bit": "int", "triggered": "bool"}),
+    "ignored_sensors?": (
+        "list",
+        {"slot": "int", "distance_mm": "num", "mount": ("nullable", MOUNT), "mount_source": "str?"},
+    ),
+    "warnings?": ("list", "str"),
     "charger": ("nullable", {"beacon_count": "int", "probe_count": "int", "probes": ("list", "int")}),
     "health": {
         "flags": "int?",

@@ -19,6 +19,8 @@ from ctrlbus.web.schema import SCHEMA_VERSION
 __all__ = [
     "SCHEMA_LINK_KEYS",
     "dashboard_snapshot",
+    "ignored_readings",
+    "ignored_warning",
 ]
 
 # The part of CoreSession.link_stats() the schema's `link` object holds.
@@ -40,6 +42,48 @@ SCHEMA_LINK_KEYS = (
 )
 
 
+def ignored_readings(session: CoreSession) -> list[dict[str, Any]]:
+    """The distance channels that report a reading (non-zero) but are no distance sensor of the
+    configuration in use: a real Core has no position for them and ignores them (protocol §12.4
+    [conf-sensor-list]; the reference's sonars through its blob). Each: `slot`, `distance_mm`, and
+    the mount the other configuration gives it (`mount`, `mount_source`), if it gives one."""
+    telemetry = session.telemetry
+    geometry = telemetry.geometry
+    distances = telemetry.distances_mm
+    if geometry is None or distances is None:
+        return []
+    used = {sensor.slot for sensor in geometry.sensors}
+    others = {
+        sensor.slot: (source, sensor.mount)
+        for source, view in telemetry.views.items()
+        if view is not geometry
+        for sensor in view.sensors
+    }
+    ignored = []
+    for slot, reading in enumerate(distances):
+        if slot in used or reading == 0:
+            continue
+        source, mount = others.get(slot, (None, None))
+        ignored.append(
+            {
+                "slot": slot,
+                "distance_mm": reading,
+                "mount": None if mount is None else mount.as_dict(),
+                "mount_source": source,
+            }
+        )
+    return ignored
+
+
+def ignored_warning(ignored: list[dict[str, Any]], config_source: str | None) -> str:
+    """The one warning about readings a real Core would ignore."""
+    slots = ", ".join(str(item["slot"]) for item in ignored)
+    return (
+        f"distance channels {slots} report readings, but the configuration the Core uses "
+        f"({config_source}) lists no sensor there: a real Core ignores them (add them to it)"
+    )
+
+
 def dashboard_snapshot(session: CoreSession) -> dict[str, Any]:
     """The whole state of `session` as plain JSON values, in the dashboard's schema."""
     telemetry = session.telemetry
@@ -56,6 +100,7 @@ def dashboard_snapshot(session: CoreSession) -> dict[str, Any]:
             "radius_mm": 0.0 if geometry is None else geometry.radius_mm,
             "config_source": telemetry.config_source or "GET_BASE_CONF",
             "views": {source: geometry_view(view) for source, view in telemetry.views.items()},
+            "blob": telemetry.blob_status,
         }
     max_vx, max_omega = session.limits()
     command = session.command
@@ -63,6 +108,7 @@ def dashboard_snapshot(session: CoreSession) -> dict[str, Any]:
     sensors = []
     bumpers = []
     cliffs = []
+    ignored: list[dict[str, Any]] = []
     if geometry is not None:
         for sensor in geometry.sensors:
             reading = None if distances is None else distances[sensor.slot]
@@ -72,6 +118,7 @@ def dashboard_snapshot(session: CoreSession) -> dict[str, Any]:
             bumpers.append({**bumper.mount.as_dict(), "bit": bumper.bit, "pressed": pressed})
         for bit in geometry.cliff_bits:
             cliffs.append({"bit": bit, "triggered": telemetry.pressed(bit)})
+    ignored = ignored_readings(session)
     charger = telemetry.charger
     health = telemetry.health
     link = session.link_stats()
@@ -110,6 +157,8 @@ def dashboard_snapshot(session: CoreSession) -> dict[str, Any]:
         "bumper_bitmap": telemetry.bumper_bitmap,
         "bumpers": bumpers,
         "cliffs": cliffs,
+        "ignored_sensors": ignored,
+        "warnings": [ignored_warning(ignored, telemetry.config_source)] if ignored else [],
         "charger": None
         if charger is None
         else {

@@ -118,6 +118,14 @@
     $("base-info").textContent = s.base
       ? `${s.base.model || "(no model)"} · firmware ${s.base.firmware_version} · ${s.base.shape} r ${fixed(s.base.radius_mm, 0)} mm · ${s.base.config_source}`
       : "no base configuration yet";
+    // 0x21 "not supported" is the base's ordinary answer when it has no blob: shown here, apart
+    // from the errors; the other states say why the Core is not (yet) using a blob.
+    const blobNotes = {
+      not_supported: " (0x21 not supported: fallback, not an error)",
+      unusable: " (0x21 blob unusable)",
+      pending: " (0x21 blob not received intact yet: asked again)",
+    };
+    if (s.base && s.base.blob && blobNotes[s.base.blob]) $("base-info").textContent += blobNotes[s.base.blob];
     let clock = "Core " + fixed(s.time_s, 1) + " s";
     if (s.sim) clock += ` · simulated ${fixed(s.sim.time_s, 1)} s` + (s.sim.speed === undefined ? "" : ` (×${fixed(s.sim.speed, 1)})`);
     $("clock").textContent = clock;
@@ -211,6 +219,19 @@
       cells[1].textContent = `${fixed(x.x_mm, 0)}, ${fixed(x.y_mm, 0)}, ${fixed(x.angle_deg, 0)}°`;
       cells[2].textContent = x.distance_mm === null ? "–" : x.distance_mm === 0 ? "0 (no echo)" : fixed(x.distance_mm, 0) + " mm";
     });
+
+    // readings of channels the configuration in use does not list: a real Core ignores them
+    const ignoredRows = s.ignored_sensors || [];
+    const warnings = s.warnings || [];
+    $("sensor-warning").hidden = warnings.length === 0;
+    $("sensor-warning").textContent = warnings.join(" ");
+    const ignoredTable = $("ignored-sensors");
+    ignoredTable.hidden = ignoredRows.length === 0;
+    ignoredTable.tBodies[0].replaceChildren(...ignoredRows.map((x) => row([
+      String(x.slot),
+      x.mount ? `${fixed(x.mount.x_mm, 0)}, ${fixed(x.mount.y_mm, 0)}, ${fixed(x.mount.angle_deg, 0)}° (${x.mount_source})` : "unknown",
+      fixed(x.distance_mm, 0) + " mm (ignored)",
+    ])));
 
     renderEvents(s.events);
   }
