@@ -848,7 +848,14 @@ def python_tables(desc: Description) -> str:
         if "below" in group:
             out.append(f"{name.upper()}_BELOW: Final = {group['below']}")
         out.append("")
-    out += ["# --- codes", ""]
+    out += ["# --- OK payload sizes per request (answers are paired with requests by size)", ""]
+    sizes = "".join(
+        f"    {q(name)}: {q(s) if isinstance(s, str) else repr(s)},\n" for name, s in ok_sizes(desc).items()
+    )
+    out.append(f"OK_SIZES: Final[Mapping[str, tuple[int, ...] | str]] = {{\n{sizes}}}")
+    heads = "".join(f"    {q(name)}: {head},\n" for name, head in ok_counted_heads(desc).items())
+    out.append(f"OK_COUNTED_HEAD: Final[Mapping[str, int]] = {{\n{heads}}}")
+    out += ["", "# --- codes", ""]
     errors = {e["code"]: e["name"] for e in raw["errors"]["codes"]}
     out.append(py_values("ERROR_CODE_NAMES", errors))
     out.append(py_values("ERROR_CODE_MEANINGS", {e["code"]: e["meaning"] for e in raw["errors"]["codes"]}))
@@ -907,6 +914,37 @@ def health_sub_names(desc: Description) -> dict[int, str]:
 
 def cmd_names(raw: dict[str, Any], *sections: str) -> dict[int, str]:
     return {number(c["cmd"]): c["name"] for section in sections for c in raw[section]}
+
+
+def ok_sizes(desc: Description) -> dict[str, tuple[int, ...] | str]:
+    """Each request's OK payload sizes: a tuple, "any" (a bytes field takes the rest), or
+    "counted" (the fixed part, then as many bytes as its last byte says: OK_COUNTED_HEAD)."""
+    sizes: dict[str, tuple[int, ...] | str] = {}
+    for m in desc.messages:
+        a = m.answer
+        if m.answer_kind == "empty":
+            sizes[m.name] = (0,)
+        elif a is None:
+            continue
+        elif a.custom:
+            sizes[m.name] = tuple(a.raw["sizes"])
+        elif a.bytes_field is not None:
+            sizes[m.name] = "counted" if "count_field" in a.bytes_field.raw else "any"
+        elif "min_size" in a.raw:
+            sizes[m.name] = tuple(range(a.raw["min_size"], a.full_size + 1))
+        else:
+            sizes[m.name] = tuple(sorted({a.base_size, a.full_size}))
+    return sizes
+
+
+def ok_counted_heads(desc: Description) -> dict[str, int]:
+    return {
+        m.name: m.answer.base_size
+        for m in desc.messages
+        if m.answer is not None
+        and m.answer.bytes_field is not None
+        and "count_field" in m.answer.bytes_field.raw
+    }
 
 
 def bit_names(group: dict[str, Any]) -> dict[int, str]:
@@ -1003,6 +1041,16 @@ def lua_tables(desc: Description) -> str:
             unit = {"degrees": "°"}.get(f.raw["unit"], f.raw["unit"])
             out.append(f"        {name.split('.')[-1]} = {{ {shift}, {lua_string(unit)} }},")
     out.append("    },")
+    out.append(
+        '    -- OK payload sizes per request: a list, "any", or "counted" (OK_COUNTED_HEAD, then its count)'
+    )
+    out.append("    OK_SIZES = {")
+    for name, s in ok_sizes(desc).items():
+        shown = lua_string(s) if isinstance(s, str) else "{ " + ", ".join(map(str, s)) + " }"
+        out.append(f"        {name} = {shown},")
+    out.append("    },")
+    heads = ", ".join(f"{name} = {head}" for name, head in ok_counted_heads(desc).items())
+    out.append(f"    OK_COUNTED_HEAD = {{ {heads} }},")
     out.append("    -- control-bus request arguments, after the request code (and the HEALTH sub-command)")
     out.append("    REQUEST_ARGS = {")
     for m in desc.messages:
@@ -1079,6 +1127,13 @@ def sigrok_tables(desc: Description) -> str:
         if "bits" in group:
             body = "".join(f"    (0x{1 << b['bit']:02X}, {b['meaning']!r}),\n" for b in group["bits"])
             out.append(f"{name.upper()}_BITS = (\n{body})")
+    out.append(
+        "# OK payload sizes per request: a tuple, 'any', or 'counted' (OK_COUNTED_HEAD, then its count)"
+    )
+    out.append("OK_SIZES = {")
+    out += [f"    {name!r}: {s!r}," for name, s in ok_sizes(desc).items()]
+    out.append("}")
+    out.append(f"OK_COUNTED_HEAD = {ok_counted_heads(desc)!r}")
     out.append("# request arguments after the code (and the HEALTH sub-command)")
     out.append("REQUEST_ARGS = {")
     for m in desc.messages:

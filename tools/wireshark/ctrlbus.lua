@@ -576,22 +576,18 @@ reset_state()
 
 local PAIR_DEPTH = 4
 local PAIR_WINDOW_S = 1.0
--- OK payload sizes each request's answer may have (the table of ctrlbus.annotate.OK_SIZES).
-local OK_SIZES = {
-    CONNECT_BASE = { 28, 39 }, GET_BASE_CONF = { 264 }, GET_BASE_CONF_ADV = "blob",
-    GET_BASE_STATUS = { 2 }, GET_BASE_MOTOR_DATA = { 9 }, GET_BASE_SENSOR_DATA = { 64 },
-    GET_BASE_BUMPER_DATA = { 1, 2, 3, 4 }, GET_CHARGER_DATA = "charger",
-    SET_V_AND_GET_DEADRECKON = { 13, 17 }, POLL_BASE_CMD = { 0, 2 }, HEALTH_GET_HEALTH = { 2 },
-    HEALTH_GET_ERROR = { 36 }, SET_BASE_MOTOR = { 0 }, POLL_BASE_ANS_CMD = { 0 }, SEND_EVENT = { 0 },
-    HEALTH_CLR_ERROR = { 0 }, BASE_CMD = { 0 },
-}
+-- OK payload sizes each request's answer may have (ctrlbus_protocol.lua, as ctrlbus.annotate's).
+local OK_SIZES = PROTOCOL.OK_SIZES
 
 local function ok_size_fits(name, payload)
     local sizes = name and OK_SIZES[name]
     if not sizes then return true end
     local n = #payload
-    if sizes == "blob" then return true end
-    if sizes == "charger" then return n >= 2 and n == 2 + payload:byte(2) end
+    if sizes == "any" then return true end
+    if sizes == "counted" then
+        local head = PROTOCOL.OK_COUNTED_HEAD[name]
+        return n >= head and n == head + payload:byte(head)
+    end
     for _, size in ipairs(sizes) do
         if n == size then return true end
     end

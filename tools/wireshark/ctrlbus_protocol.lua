@@ -92,6 +92,27 @@ return {
         dtheta_deg_q16 = { 16, "°" },
         timestamp_ms = { 0, "ms" },
     },
+    -- OK payload sizes per request: a list, "any", or "counted" (OK_COUNTED_HEAD, then its count)
+    OK_SIZES = {
+        BASE_CMD = { 0 },
+        CONNECT_BASE = { 28, 39 },
+        GET_BASE_CONF = { 264 },
+        GET_BASE_CONF_ADV = "any",
+        GET_BASE_STATUS = { 2 },
+        GET_BASE_MOTOR_DATA = { 9 },
+        GET_BASE_SENSOR_DATA = { 64 },
+        GET_BASE_BUMPER_DATA = { 1, 2, 3, 4 },
+        GET_CHARGER_DATA = "counted",
+        SET_BASE_MOTOR = { 0 },
+        SET_V_AND_GET_DEADRECKON = { 13, 17 },
+        POLL_BASE_CMD = { 0, 2 },
+        POLL_BASE_ANS_CMD = { 0 },
+        SEND_EVENT = { 0 },
+        HEALTH_GET_HEALTH = { 2 },
+        HEALTH_GET_ERROR = { 36 },
+        HEALTH_CLR_ERROR = { 0 },
+    },
+    OK_COUNTED_HEAD = { GET_CHARGER_DATA = 2 },
     -- control-bus request arguments, after the request code (and the HEALTH sub-command)
     REQUEST_ARGS = {
         CONNECT_BASE = { { "protocol_version", "u8" } },

@@ -111,27 +111,10 @@ _FLUSH_TIMEOUT_S = 1.0
 # flushing SYNC). Seconds of capture time; a base answers within milliseconds.
 PAIR_DEPTH = 4
 PAIR_WINDOW_S = 1.0
-# OK payload sizes each request's answer may have (the same table as the Wireshark dissector's
-# pairing): a tuple of sizes, "blob" (any size) or "charger" (2 + probe_count).
-OK_SIZES: Mapping[str, Any] = {
-    "CONNECT_BASE": (28, 39),
-    "GET_BASE_CONF": (264,),
-    "GET_BASE_CONF_ADV": "blob",
-    "GET_BASE_STATUS": (2,),
-    "GET_BASE_MOTOR_DATA": (9,),
-    "GET_BASE_SENSOR_DATA": (64,),
-    "GET_BASE_BUMPER_DATA": (1, 2, 3, 4),
-    "GET_CHARGER_DATA": "charger",
-    "SET_V_AND_GET_DEADRECKON": (13, 17),
-    "POLL_BASE_CMD": (0, 2),
-    "HEALTH_GET_HEALTH": (2,),
-    "HEALTH_GET_ERROR": (36,),
-    "SET_BASE_MOTOR": (0,),
-    "POLL_BASE_ANS_CMD": (0,),
-    "SEND_EVENT": (0,),
-    "HEALTH_CLR_ERROR": (0,),
-    "BASE_CMD": (0,),
-}
+# OK payload sizes each request's answer may have, from the protocol description (the same table
+# as the Wireshark dissector's and the sigrok decoder's pairing): a tuple of sizes, "any", or
+# "counted" (a fixed head, then as many bytes as the head's last byte says).
+OK_SIZES = protocol_tables.OK_SIZES
 
 
 NO_REQUEST_TEXT = "no request outstanding: an OK payload can only be read knowing its request"
@@ -143,10 +126,11 @@ def ok_size_fits(name: str | None, payload: bytes) -> bool:
     sizes = OK_SIZES.get(name or "")
     if sizes is None:
         return True
-    if sizes == "blob":
+    if sizes == "any":
         return True  # a blob of any size (the codec takes even an empty one)
-    if sizes == "charger":
-        return len(payload) >= 2 and len(payload) == 2 + payload[1]
+    if sizes == "counted":
+        head = protocol_tables.OK_COUNTED_HEAD[name or ""]
+        return len(payload) >= head and len(payload) == head + payload[head - 1]
     return len(payload) in sizes
 
 

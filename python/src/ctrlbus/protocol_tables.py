@@ -98,6 +98,31 @@ LINE_FAULTS_CHECKSUM: Final = 0x40
 LINE_FAULTS_FRAME_READY: Final = 0x80
 LINE_FAULTS_BELOW: Final = 0x0100
 
+# --- OK payload sizes per request (answers are paired with requests by size)
+
+OK_SIZES: Final[Mapping[str, tuple[int, ...] | str]] = {
+    "BASE_CMD": (0,),
+    "CONNECT_BASE": (28, 39),
+    "GET_BASE_CONF": (264,),
+    "GET_BASE_CONF_ADV": "any",
+    "GET_BASE_STATUS": (2,),
+    "GET_BASE_MOTOR_DATA": (9,),
+    "GET_BASE_SENSOR_DATA": (64,),
+    "GET_BASE_BUMPER_DATA": (1, 2, 3, 4),
+    "GET_CHARGER_DATA": "counted",
+    "SET_BASE_MOTOR": (0,),
+    "SET_V_AND_GET_DEADRECKON": (13, 17),
+    "POLL_BASE_CMD": (0, 2),
+    "POLL_BASE_ANS_CMD": (0,),
+    "SEND_EVENT": (0,),
+    "HEALTH_GET_HEALTH": (2,),
+    "HEALTH_GET_ERROR": (36,),
+    "HEALTH_CLR_ERROR": (0,),
+}
+OK_COUNTED_HEAD: Final[Mapping[str, int]] = {
+    "GET_CHARGER_DATA": 2,
+}
+
 # --- codes
 
 ERROR_CODE_NAMES: Final[Mapping[int, str]] = {

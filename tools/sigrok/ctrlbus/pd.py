@@ -22,7 +22,7 @@ MAX_FRAME = 65539
 
 # Names, bit meanings and layouts: protocol.py, generated from protocol/ctrlbus.json.
 from .protocol import (ANSWERS, BASE_CMD_SUBCOMMANDS as BASE_SUBCOMMANDS, BASE_TYPES,
-                       CTRL_REQUESTS, EVENTS, EXTERNAL_COMMANDS, HEALTH_COMPONENTS,
+                       CTRL_REQUESTS, OK_COUNTED_HEAD, OK_SIZES, EVENTS, EXTERNAL_COMMANDS, HEALTH_COMPONENTS,
                        HEALTH_FLAGS_BITS as HEALTH_BITS, HEALTH_LEVELS, HEALTH_SUBS,
                        MOTOR_STATUS_BITS as MOTION_BITS, MOTOR_TYPES,
                        POWER_STATUS_BITS as POWER_BITS, REQUEST_ARGS, RESPONSES, TOP_REQUESTS)
@@ -239,27 +239,21 @@ OK_ANSWERS = ('BASE_CMD', 'CONNECT_BASE', 'GET_BASE_CONF', 'GET_BASE_CONF_ADV', 
 
 # Pairing by order, timing and size, as `ctrlbus decode` (ctrlbus.annotate): the requests waiting
 # are the last PAIR_DEPTH ones, none older than PAIR_WINDOW_S; an answer goes to the newest one it
-# fits, and that one and every older one stop waiting. OK payload sizes per request:
+# fits, and that one and every older one stop waiting. OK payload sizes per request: OK_SIZES
+# (protocol.py).
 PAIR_DEPTH = 4
 PAIR_WINDOW_S = 1.0
-OK_SIZES = {
-    'CONNECT_BASE': (28, 39), 'GET_BASE_CONF': (264,), 'GET_BASE_CONF_ADV': 'blob',
-    'GET_BASE_STATUS': (2,), 'GET_BASE_MOTOR_DATA': (9,), 'GET_BASE_SENSOR_DATA': (64,),
-    'GET_BASE_BUMPER_DATA': (1, 2, 3, 4), 'GET_CHARGER_DATA': 'charger',
-    'SET_V_AND_GET_DEADRECKON': (13, 17), 'POLL_BASE_CMD': (0, 2), 'HEALTH_GET_HEALTH': (2,),
-    'HEALTH_GET_ERROR': (36,), 'SET_BASE_MOTOR': (0,), 'POLL_BASE_ANS_CMD': (0,), 'SEND_EVENT': (0,),
-    'HEALTH_CLR_ERROR': (0,), 'BASE_CMD': (0,),
-}
 
 
 def ok_size_fits(name, payload):
     sizes = OK_SIZES.get(name or '')
     if sizes is None:
         return True
-    if sizes == 'blob':
+    if sizes == 'any':
         return True
-    if sizes == 'charger':
-        return len(payload) >= 2 and len(payload) == 2 + payload[1]
+    if sizes == 'counted':
+        head = OK_COUNTED_HEAD[name]
+        return len(payload) >= head and len(payload) == head + payload[head - 1]
     return len(payload) in sizes
 
 
