@@ -15,13 +15,20 @@ BUILD := build
 JOBS  ?= 2
 DEMO_ARGS ?=
 
-.PHONY: all setup c-build c-build-only firmware firmware-only ports ports-only c-test c-test-config-off c-test-asan lint py-test test demo size bench fuzz fuzz-smoke clean
+.PHONY: all setup generate c-build c-build-only firmware firmware-only ports ports-only c-test c-test-config-off c-test-asan lint py-test test demo size bench fuzz fuzz-smoke clean
 
 all: test
 
 # Everything the test, bench and fuzz jobs use (apt groups, dev tools, the Python 3.10 venv).
 setup:
 	@scripts/setup.sh full
+
+# Every table generated from the protocol description (protocol/ctrlbus.json): the C answer
+# structs, layouts and decoders, ctrlbus.protocol_tables, the Wireshark and sigrok tables and the
+# field tables of docs/protocol.md (scripts/generate_protocol.py: Python's standard library only).
+# tests/test_generated.py (in py-test) fails when a committed file differs from what this writes.
+generate:
+	@python3 scripts/generate_protocol.py
 
 # Host build of the C library, tests and examples (warnings are errors). A Debug build, for our
 # tests: firmware links a Release one (docs/c-library.md). Needs a C compiler, CMake and make
@@ -62,6 +69,9 @@ lint: setup
 	@cd python && ../$(VENV)/bin/mypy src tests
 	@$(VENV)/bin/ruff check --config python/pyproject.toml bench && $(VENV)/bin/ruff format --config python/pyproject.toml --check bench
 	@cd bench && MYPYPATH=../python/src ../$(VENV)/bin/mypy --config-file ../python/pyproject.toml --explicit-package-bases .
+	@$(VENV)/bin/ruff check --config python/pyproject.toml scripts/generate_protocol.py && \
+	  $(VENV)/bin/ruff format --config python/pyproject.toml --check scripts/generate_protocol.py && \
+	  $(VENV)/bin/mypy --config-file python/pyproject.toml scripts/generate_protocol.py
 
 # Python tests run against the C builds too (host base, firmware), so build those first. The whole
 # suite runs twice: on the default interpreter and on Python 3.10, the oldest supported

@@ -735,14 +735,14 @@ static NOINLINE uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t
     case CTRLBUS_REQ_GET_BASE_MOTOR_DATA:
         if (config->motor_data != NULL) {
             result = config->motor_data(config->context, &out->get_base_motor_data);
-            size = CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE;
+            size = CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE_OF(&out->get_base_motor_data);
             layout = ctrlbus_codec_get_base_motor_data_layout;
         }
         break;
     case CTRLBUS_REQ_GET_BASE_SENSOR_DATA:
         if (config->sensor_data != NULL) {
             result = config->sensor_data(config->context, &out->get_base_sensor_data);
-            size = CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE;
+            size = CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE_OF(&out->get_base_sensor_data);
             layout = ctrlbus_codec_get_base_sensor_data_layout;
         }
         break;
@@ -771,9 +771,7 @@ static NOINLINE uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t
     case CTRLBUS_REQ_SET_V_AND_GET_DEADRECKON:
         if (config->set_velocity != NULL) {
             result = set_velocity(base, args, &out->motion, now_ms);
-            size = out->motion.answer.has_timestamp_ms
-                       ? CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_WITH_TIMESTAMP
-                       : CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE;
+            size = CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_OF(&out->motion.answer);
             layout = ctrlbus_codec_set_v_and_get_deadreckon_layout;
         }
         break;
