@@ -5,22 +5,30 @@
 SHELL := /bin/bash
 VENV  := .venv
 VENV310 := .venv310
-# The venv's Python once `setup` made it; before that the system's (the scripts that `arduino`
-# and `release-tag` run use nothing but the standard library).
-PY    := $(if $(wildcard $(VENV)/bin/python),$(VENV)/bin/python,python3)
+# The venv's Python, for the jobs that run `setup` first; the scripts that `arduino` and
+# `release-tag` run use nothing but the standard library, so they take the system's.
+PY    := $(VENV)/bin/python
+SYSTEM_PY := python3
 # Ninja when it is installed (setup installs it), else CMake's default generator (make).
 CMAKE_GENERATOR ?= $(if $(shell command -v ninja),Ninja,Unix Makefiles)
 BUILD := build
 JOBS  ?= 2
 DEMO_ARGS ?=
 
-.PHONY: all setup c-build c-build-only firmware firmware-only ports ports-only c-test c-test-config-off c-test-asan lint py-test test demo size bench fuzz fuzz-smoke clean
+.PHONY: all setup generate c-build c-build-only firmware firmware-only ports ports-only c-test c-test-config-off c-test-asan lint py-test test demo size bench fuzz fuzz-smoke clean
 
 all: test
 
 # Everything the test, bench and fuzz jobs use (apt groups, dev tools, the Python 3.10 venv).
 setup:
 	@scripts/setup.sh full
+
+# Every table generated from the protocol description (protocol/ctrlbus.json): the C answer
+# structs, layouts and decoders, ctrlbus.protocol_tables, the Wireshark and sigrok tables and the
+# field tables of docs/protocol.md (scripts/generate_protocol.py: Python's standard library only).
+# tests/test_generated.py (in py-test) fails when a committed file differs from what this writes.
+generate:
+	@python3 scripts/generate_protocol.py
 
 # Host build of the C library, tests and examples (warnings are errors). A Debug build, for our
 # tests: firmware links a Release one (docs/c-library.md). Needs a C compiler, CMake and make
@@ -61,6 +69,9 @@ lint: setup
 	@cd python && ../$(VENV)/bin/mypy src tests
 	@$(VENV)/bin/ruff check --config python/pyproject.toml bench && $(VENV)/bin/ruff format --config python/pyproject.toml --check bench
 	@cd bench && MYPYPATH=../python/src ../$(VENV)/bin/mypy --config-file ../python/pyproject.toml --explicit-package-bases .
+	@$(VENV)/bin/ruff check --config python/pyproject.toml scripts/generate_protocol.py && \
+	  $(VENV)/bin/ruff format --config python/pyproject.toml --check scripts/generate_protocol.py && \
+	  $(VENV)/bin/mypy --config-file python/pyproject.toml scripts/generate_protocol.py
 
 # Python tests run against the C builds too (host base, firmware), so build those first. The suite
 # runs on both cores (pytest-xdist) with the CI Hypothesis profile, then again on Python 3.10, the
@@ -166,7 +177,7 @@ consumers: setup
 # one in c/include/ctrlbus/ctrlbus.h; python/tests/test_release.py checks every artefact.
 DIST ?= dist
 arduino:
-	@$(PY) scripts/arduino_zip.py $(DIST)
+	@$(SYSTEM_PY) scripts/arduino_zip.py $(DIST)
 
 release: setup
 	@version=$$($(PY) scripts/ctrlbus_version.py) && mkdir -p $(DIST) && \
@@ -186,5 +197,5 @@ clean:
 # HEAD, the tag the README's FetchContent recipe names. Refuses a tree with uncommitted changes.
 release-tag:
 	@git diff --quiet HEAD || { echo "release-tag: commit your changes first" >&2; exit 2; }
-	@version=$$($(PY) scripts/ctrlbus_version.py) && git tag -a "v$$version" -m "ctrlbus $$version" && \
+	@version=$$($(SYSTEM_PY) scripts/ctrlbus_version.py) && git tag -a "v$$version" -m "ctrlbus $$version" && \
 	  echo "tagged v$$version: git push origin v$$version"

@@ -76,12 +76,21 @@ _REPORT_FIELD = re.compile(r"(\w+)=(\d+)")
 _TOTAL = re.compile(r"^(?:summary|totals):\s*(\d+)", re.MULTILINE)
 
 
-def callgrind(ctx: BenchContext, binary: Path, mode: str, stream: Path) -> HarnessRun:
-    """Run the harness in one mode under callgrind; returns its Ir total and its own report line."""
+def callgrind(ctx: BenchContext, binary: Path, mode: str, stream: Path, *args: str) -> HarnessRun:
+    """Run the harness in one mode under callgrind (args after the stream file); returns its Ir
+    total and its own report line."""
     out_file = ctx.work_dir / f"callgrind.{binary.name}.{mode}.{stream.stem}.out"
     stdout = run_command(
         ctx,
-        ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out_file}", str(binary), mode, str(stream)],
+        [
+            "valgrind",
+            "--tool=callgrind",
+            f"--callgrind-out-file={out_file}",
+            str(binary),
+            mode,
+            str(stream),
+            *args,
+        ],
     )
     match = _TOTAL.search(out_file.read_text())
     if match is None:

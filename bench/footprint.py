@@ -14,6 +14,8 @@ Two sources, checked against each other:
 
 from __future__ import annotations
 
+import json
+import os
 import re
 import shutil
 from collections import defaultdict
@@ -38,16 +40,24 @@ from findings import Findings
 NAME = "footprint"
 TITLE = "Footprint from make size (cortex-m0plus/m3/m4)"
 GOAL = (
-    "base stack ≤ 4 KiB .text on cortex-m0plus (default configuration), ≤ 64 B instance state, "
-    "no transmit buffer"
+    "base stack on cortex-m0plus -Os ≤ 4,096 B .text (default configuration) and ≤ 2,560 B "
+    "(minimal), never above the reference's framer + dispatcher; ctrlbus_base_poll() stack ≤ 256 B; "
+    "≤ 64 B instance state; no transmit buffer"
 )
 
 SIZE_SCRIPT = REPO / "scripts" / "size.sh"
+# The reference's framer + dispatcher (scripts/reference_footprint.sh), measured only where a
+# checkout of the vendor's public sources is given; otherwise the last recorded figures are kept.
+REFERENCE_SCRIPT = REPO / "scripts" / "reference_footprint.sh"
+REFERENCE_CHECKOUT_ENV = "CTRLBUS_REFERENCE_CHECKOUT"
+REFERENCE_INCLUDE_ENV = "CTRLBUS_REFERENCE_DEVICE_INCLUDE"
+_SWITCH_ROW = re.compile(r"^\s+switch (CTRLBUS_CONFIG_\w+)=0\s+(\d+) B \.text, saves\s+(-?\d+) B")
+_REFERENCE_ROW = re.compile(r"^(\S+)\s+(-O\w)\s+(\S+)\s+(\d+)\s+(\d+)\s+(\d+)\s*$")
 CROSS = "arm-none-eabi-"
 CPUS = {FULL: ["cortex-m0plus", "cortex-m3", "cortex-m4"], SMOKE: ["cortex-m0plus"]}
 GOAL_CPU = "cortex-m0plus"
 TEXT_GOAL = 4096
-MINIMAL_TEXT_GOAL = 1536
+MINIMAL_TEXT_GOAL = 2560
 STACK_GOAL = 256
 # scripts/size.sh's per-target table (TARGETS): base stack per target, configuration and -O level.
 TARGETS = {
@@ -247,6 +257,31 @@ def _sections_text(s: Sections) -> str:
     return f"{s.text:,} B .text, {s.data} B .data, {s.bss} B .bss"
 
 
+def reference_figures(ctx: BenchContext) -> dict[str, Any] | None:
+    """The reference's framer + dispatcher on cortex-m0plus -Os and -O2: measured when a checkout
+    is given (CTRLBUS_REFERENCE_CHECKOUT, optionally CTRLBUS_REFERENCE_DEVICE_INCLUDE), else the
+    figures of the last run that measured them (bench/results/footprint.json), else None."""
+    checkout = os.environ.get(REFERENCE_CHECKOUT_ENV)
+    if checkout:
+        argv = [str(REFERENCE_SCRIPT), checkout]
+        if os.environ.get(REFERENCE_INCLUDE_ENV):
+            argv.append(os.environ[REFERENCE_INCLUDE_ENV])
+        output = run_command(ctx, ["env", "CPUS=cortex-m0plus", "OPTS=-Os -O2", *argv])
+        files: dict[str, dict[str, int]] = defaultdict(dict)
+        for line in output.splitlines():
+            if m := _REFERENCE_ROW.match(line):
+                files[m.group(2)][m.group(3)] = int(m.group(4))
+        if "total" not in files.get("-Os", {}):
+            raise BenchError(f"scripts/reference_footprint.sh printed no total:\n{output}")
+        return {"measured_in_this_run": True, "text": dict(files), "compiler": output.splitlines()[0]}
+    previous = REPO / "bench" / "results" / f"{NAME}.json"
+    if previous.is_file():
+        recorded = json.loads(previous.read_text()).get("details", {}).get("reference")
+        if recorded:
+            return {**recorded, "measured_in_this_run": False}
+    return None
+
+
 def run(ctx: BenchContext) -> Findings:
     if shutil.which(f"{CROSS}gcc") is None:
         return Findings(
@@ -382,6 +417,53 @@ def run(ctx: BenchContext) -> Findings:
             "yes" if minimal_text <= MINIMAL_TEXT_GOAL else "**no**",
         ]
     )
+    reference = reference_figures(ctx) if ctx.mode == FULL else None
+    if reference is not None:
+        ref_os = reference["text"]["-Os"]["total"]
+        figures["reference_framer_dispatcher_text_Os"] = ref_os
+        figures["reference_framer_dispatcher_text_O2"] = reference["text"].get("-O2", {}).get("total")
+        ref_files = ", ".join(f"{f} {n:,}" for f, n in reference["text"]["-Os"].items() if f != "total")
+        when = "" if reference["measured_in_this_run"] else " (recorded by an earlier run)"
+        rows.append(
+            [
+                f"{GOAL_CPU} -Os: the reference's framer + dispatcher, same compiler and flags "
+                "(scripts/reference_footprint.sh)",
+                "published",
+                f"{ref_os:,} B .text: {ref_files}{when}",
+                "",
+                "",
+                "yes",
+            ]
+        )
+        rows.append(
+            [
+                f"{GOAL_CPU} -Os: minimal configuration against the reference",
+                "never above it",
+                f"{minimal_text:,} B against {ref_os:,} B",
+                "",
+                f"{minimal_text / ref_os:.2f} ×",
+                "yes" if minimal_text <= ref_os else "**no**",
+            ]
+        )
+    switches = {
+        m.group(1): (int(m.group(2)), int(m.group(3)))
+        for m in map(_SWITCH_ROW.match, output.splitlines())
+        if m
+    }
+    for switch, (text, saves) in switches.items():
+        figures[f"{GOAL_CPU.replace('-', '_')}_without_{switch}_text"] = text
+        figures[f"{GOAL_CPU.replace('-', '_')}_{switch}_saves"] = saves
+    if switches:
+        rows.append(
+            [
+                f"{GOAL_CPU} -Os: what each ctrlbus_config.h switch saves, turned off alone",
+                "published",
+                "; ".join(f"{switch} {saves:,} B" for switch, (_, saves) in switches.items()),
+                "",
+                "",
+                "yes",
+            ]
+        )
     poll_stack = per_target[GOAL_CPU][("default", "-Os")][3]
     rows.append(
         [
@@ -434,6 +516,9 @@ def run(ctx: BenchContext) -> Findings:
     )
     details: dict[str, Any] = {
         "size_report": output,
+        "reference": (
+            None if reference is None else {k: v for k, v in reference.items() if k != "measured_in_this_run"}
+        ),
         "cflags": CFLAGS,
         "base_stack_by_object": {cpu: b.by_object for cpu, b in breakdowns.items()},
         "base_stack_largest_functions": {cpu: b.functions[:20] for cpu, b in breakdowns.items()},

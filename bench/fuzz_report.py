@@ -30,7 +30,7 @@ GOAL_EXECUTIONS = 10_000_000
 GOAL = f"≥ {GOAL_EXECUTIONS / 1e6:g} M executions of each target without a finding"
 TARGETS = ("decoder", "base", "fixup")
 WHAT = {
-    "decoder": "stream decoder (bulk path against the byte path)",
+    "decoder": "stream decoder (feed, byte path and chunk path against each other)",
     "base": "whole base stack, bytes in, answers out",
     "fixup": "base stack and message codecs, lengths and checksums fixed up",
 }

@@ -127,29 +127,33 @@ def _plot_garbage_recovery(result: dict[str, Any], img_dir: Path) -> Path:
 
 
 def _plot_base_exchange(result: dict[str, Any], img_dir: Path) -> Path:
-    """Where one exchange's instructions go, per function (request fed whole, gcc -O2)."""
+    """Instructions per exchange on the firmware timeline: ours, the floor, MAVLink's parse."""
     f = result["figures"]
-    profile = [(name, cost) for name, cost in result["details"]["profile_per_exchange"]["O2"]["frames"]]
+    groups = [(level, kind) for level in ("O2", "Os") for kind in ("set_v", "status")]
+    labels = [f"{'SET_V' if kind == 'set_v' else 'STATUS'} -{level}" for level, kind in groups]
+    series = [
+        ("ctrlbus base stack", [f[f"{lv}_{k}_ours_per_exchange"] for lv, k in groups]),
+        ("hand-written floor", [f[f"{lv}_{k}_floor_per_exchange"] for lv, k in groups]),
+        ("MAVLink parse (same payload)", [f[f"{lv}_{k}_mavlink_parse_per_message"] for lv, k in groups]),
+    ]
     fig, ax = plt.subplots(figsize=(7.5, 4.4), dpi=110)
-    names = [name for name, _ in reversed(profile)]
-    costs = [cost for _, cost in reversed(profile)]
-    bars = ax.barh(names, costs)
-    for bar, cost in zip(bars, costs, strict=True):
-        ax.annotate(
-            f"{cost:,.0f}",
-            (bar.get_width(), bar.get_y() + bar.get_height() / 2),
-            va="center",
-            fontsize=7,
-            xytext=(3, 0),
-            textcoords="offset points",
-        )
-    ax.set_xlabel("instructions per exchange (callgrind, gcc -O2)")
-    ax.set_title(
-        f"C base stack, one SET_V_AND_GET_DEADRECKON exchange (request fed whole): "
-        f"{f['O2_frames_instructions_per_exchange']:,.0f} instructions",
-        fontsize=9,
-    )
-    ax.margins(x=0.15)
+    width = 0.27
+    for index, (name, values) in enumerate(series):
+        xs = [x + (index - 1) * width for x in range(len(groups))]
+        bars = ax.bar(xs, values, width, label=name)
+        for bar, value in zip(bars, values, strict=True):
+            ax.annotate(
+                f"{value:,.0f}",
+                (bar.get_x() + bar.get_width() / 2, bar.get_height()),
+                ha="center",
+                fontsize=6,
+                xytext=(0, 2),
+                textcoords="offset points",
+            )
+    ax.set_xticks(range(len(groups)), labels)
+    ax.set_ylabel("instructions per exchange (callgrind)")
+    ax.set_title("One exchange as a firmware runs it (byte interrupt, poll per ms)", fontsize=9)
+    ax.legend(fontsize=7)
     return _save(fig, img_dir / "bench-base-exchange.png")
 
 

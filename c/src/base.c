@@ -79,32 +79,37 @@ static void clear_flags(ctrlbus_base_t *base, uint8_t flags)
 
 /* ---- receive ring --------------------------------------------------------------------------- */
 
-/* poll() hands the decoder a run of ring bytes shorter than this one byte at a time through
- * ctrlbus_decoder_push(), and a longer run through ctrlbus_decoder_take(), which checks a whole
- * frame in place: short runs are mostly frame pieces, which take() would copy anyway. */
-#define PUSH_BELOW 16u
+bool ctrlbus_base_feed_byte(ctrlbus_base_t *base, uint8_t byte)
+{
+    if (base == NULL || base->config == NULL) {
+        return false;
+    }
+    const ctrlbus_base_config_t *config = base->config;
+    uint16_t head = base->rx_head;
+    uint16_t next = (uint16_t)(head + 1u == config->rx_ring_size ? 0u : head + 1u);
+    if (next == base->rx_tail) {
+        base->rx_dropped += 1u;
+        return false;
+    }
+    config->rx_ring[head] = byte;
+    CTRLBUS_RING_FENCE(); /* the byte is in the ring before the index says so */
+    base->rx_head = next;
+    return true;
+}
 
 size_t ctrlbus_base_feed(ctrlbus_base_t *base, const uint8_t *data, size_t len)
 {
-    if (base == NULL || base->config == NULL || data == NULL) {
-        return 0;
-    }
-    uint8_t *ring = base->config->rx_ring;
-    uint16_t size = base->config->rx_ring_size;
-    uint16_t head = base->rx_head; /* ours: only feed writes it */
-    uint16_t tail = base->rx_tail; /* one snapshot: space freed later is used by the next feed */
     size_t taken = 0;
-    while (taken < len) {
-        uint16_t next = (uint16_t)(head + 1u == size ? 0u : head + 1u);
-        if (next == tail) {
-            base->rx_dropped += (uint32_t)(len - taken);
-            break;
+    if (data != NULL) {
+        /* Byte by byte: each is published as soon as it is in (a caller that can wait, such as a
+         * host thread, may offer the rest again later). */
+        while (taken < len && ctrlbus_base_feed_byte(base, data[taken])) {
+            taken++;
         }
-        ring[head] = data[taken++];
-        head = next;
+        if (taken < len && base != NULL && base->config != NULL) {
+            base->rx_dropped += (uint32_t)(len - taken - 1u); /* feed_byte counted the first */
+        }
     }
-    CTRLBUS_RING_FENCE(); /* the bytes are in the ring before the index says so */
-    base->rx_head = head;
     return taken;
 }
 
@@ -730,14 +735,14 @@ static NOINLINE uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t
     case CTRLBUS_REQ_GET_BASE_MOTOR_DATA:
         if (config->motor_data != NULL) {
             result = config->motor_data(config->context, &out->get_base_motor_data);
-            size = CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE;
+            size = CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE_OF(&out->get_base_motor_data);
             layout = ctrlbus_codec_get_base_motor_data_layout;
         }
         break;
     case CTRLBUS_REQ_GET_BASE_SENSOR_DATA:
         if (config->sensor_data != NULL) {
             result = config->sensor_data(config->context, &out->get_base_sensor_data);
-            size = CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE;
+            size = CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE_OF(&out->get_base_sensor_data);
             layout = ctrlbus_codec_get_base_sensor_data_layout;
         }
         break;
@@ -766,9 +771,7 @@ static NOINLINE uint16_t run_request(ctrlbus_base_t *base, const ctrlbus_frame_t
     case CTRLBUS_REQ_SET_V_AND_GET_DEADRECKON:
         if (config->set_velocity != NULL) {
             result = set_velocity(base, args, &out->motion, now_ms);
-            size = out->motion.answer.has_timestamp_ms
-                       ? CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_WITH_TIMESTAMP
-                       : CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE;
+            size = CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_OF(&out->motion.answer);
             layout = ctrlbus_codec_set_v_and_get_deadreckon_layout;
         }
         break;
@@ -910,15 +913,12 @@ static NOINLINE void answer(ctrlbus_base_t *base, ctrlbus_rx_t rx, const ctrlbus
     }
 }
 
-/* Answers `rx` (a result push or take returned, with *frame; NONE or BUSY for none), then every
- * result the decoder has ready (into *frame). Returns how many there were. */
+/* Answers `rx` (a result next() returned, with *frame; NONE for none), then every result the
+ * decoder has ready (into *frame). Returns how many there were. */
 static inline unsigned drain(ctrlbus_base_t *base, uint32_t now_ms, ctrlbus_rx_t rx,
                       ctrlbus_frame_t *frame)
 {
     unsigned results = 0;
-    if (rx == CTRLBUS_RX_NONE || rx == CTRLBUS_RX_BUSY) {
-        rx = ctrlbus_decoder_next(&base->decoder, frame);
-    }
     for (; rx != CTRLBUS_RX_NONE; rx = ctrlbus_decoder_next(&base->decoder, frame)) {
         results++;
         answer(base, rx, frame, now_ms);
@@ -926,39 +926,17 @@ static inline unsigned drain(ctrlbus_base_t *base, uint32_t now_ms, ctrlbus_rx_t
     return results;
 }
 
-#if CTRLBUS_DECODER_FAST
-/* Pushes the *run ring bytes from rx_tail on, one push() each (its inline path), up to the first
- * result, which it returns (NONE: none), and sets *run to the bytes it took. Out of line: its
- * locals are not on the stack while the answers are written. */
-static NOINLINE ctrlbus_rx_t push_run(ctrlbus_base_t *base, size_t *run, uint32_t now_ms,
+/* Feeds the decoder the *run ring bytes from rx_tail on, up to the first result, which it returns
+ * (NONE: none), and sets *run to the bytes it took. A feed appends the bytes of a frame whose size
+ * is known in one run and checks them once, when the frame is complete; the base links neither
+ * push() nor take(). Out of line: its locals are not on the stack while the answers are
+ * written. */
+static NOINLINE ctrlbus_rx_t feed_run(ctrlbus_base_t *base, size_t *run, uint32_t now_ms,
                                       ctrlbus_frame_t *frame)
 {
-    const uint8_t *bytes = base->config->rx_ring + base->rx_tail;
-    ctrlbus_rx_t rx = CTRLBUS_RX_NONE;
-    size_t taken = 0;
-    while (taken < *run && (rx = ctrlbus_decoder_push(&base->decoder, bytes[taken], now_ms,
-                                                      frame)) == CTRLBUS_RX_NONE) {
-        taken++;
-    }
-    if (rx != CTRLBUS_RX_NONE && rx != CTRLBUS_RX_BUSY) {
-        taken++; /* the byte that completed the result was taken too */
-    }
-    *run = taken;
-    return rx;
+    *run = ctrlbus_decoder_feed(&base->decoder, base->config->rx_ring + base->rx_tail, *run, now_ms);
+    return ctrlbus_decoder_next(&base->decoder, frame);
 }
-
-/* The same through one take(), which hands a whole frame out in place, its payload still in the
- * ring; its own frame is small, since take's path is poll's deepest. */
-static NOINLINE ctrlbus_rx_t take_run(ctrlbus_base_t *base, size_t *run, uint32_t now_ms,
-                                      ctrlbus_frame_t *frame)
-{
-    const uint8_t *at = base->config->rx_ring + base->rx_tail;
-    size_t left = *run;
-    ctrlbus_rx_t rx = ctrlbus_decoder_take(&base->decoder, &at, &left, now_ms, frame);
-    *run -= left;
-    return rx;
-}
-#endif
 
 void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
 {
@@ -979,26 +957,19 @@ void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
         ctrlbus_rx_t rx;
         size_t used = 0;
         if (tail == head) {
+            if (!ctrlbus_decoder_busy(&base->decoder)) {
+                return; /* nothing held that could time out, nothing waiting to be answered */
+            }
             /* The ring is done: the inter-byte timeout, then whatever it leaves to answer. */
             ctrlbus_decoder_tick(&base->decoder, now_ms);
-            rx = CTRLBUS_RX_BUSY; /* drain: the decoder's own results */
+            rx = ctrlbus_decoder_next(&base->decoder, &frame);
         } else {
-#if CTRLBUS_DECODER_FAST == 0
-            /* Without the bulk path, one push per byte (BUSY: results were waiting; the byte is
-             * pushed again after them). */
-            rx = ctrlbus_decoder_push(&base->decoder, config->rx_ring[tail], now_ms, &frame);
-            used = rx != CTRLBUS_RX_BUSY;
-#else
-            /* A run shorter than PUSH_BELOW byte by byte, a longer one through take() (both
-             * from tail). */
+            /* The run of bytes up to head or the ring's end. */
             used = (size_t)((head > tail ? head : config->rx_ring_size) - tail);
-            rx = used < PUSH_BELOW ? push_run(base, &used, now_ms, &frame)
-                                   : take_run(base, &used, now_ms, &frame);
-#endif
+            rx = feed_run(base, &used, now_ms, &frame);
         }
-        /* A result is answered before its bytes' slots are released, since a frame taken in
-         * place still lies in them. */
-        unsigned results = rx == CTRLBUS_RX_NONE ? 0u : drain(base, now_ms, rx, &frame);
+        /* The results are answered before their bytes' slots are released. */
+        unsigned results = drain(base, now_ms, rx, &frame);
         if (base->flags & FLAG_REBOOTED) {
             /* A reboot handler returned: restart() dropped the ring's bytes, the answered ones
              * included, and what was received before the reset is not heard. */

@@ -167,8 +167,10 @@ int32_t ctrlbus_codec_write_ok(ctrlbus_sink_t *sink, int32_t size, ctrlbus_codec
                                const void *answer, ctrlbus_frame_type_t type);
 
 /* Each answer's layout (messages.c). */
+/* BEGIN GENERATED layout declarations (make generate: from protocol/ctrlbus.json) */
 extern const ctrlbus_codec_field_t ctrlbus_codec_connect_base_layout[] CODEC_ROM;
 extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_conf_layout[] CODEC_ROM;
+extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_conf_adv_layout[] CODEC_ROM;
 extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_status_layout[] CODEC_ROM;
 extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_motor_data_layout[] CODEC_ROM;
 extern const ctrlbus_codec_field_t ctrlbus_codec_get_base_sensor_data_layout[] CODEC_ROM;
@@ -177,5 +179,6 @@ extern const ctrlbus_codec_field_t ctrlbus_codec_get_charger_data_layout[] CODEC
 extern const ctrlbus_codec_field_t ctrlbus_codec_set_v_and_get_deadreckon_layout[] CODEC_ROM;
 extern const ctrlbus_codec_field_t ctrlbus_codec_health_get_health_layout[] CODEC_ROM;
 extern const ctrlbus_codec_field_t ctrlbus_codec_health_get_error_layout[] CODEC_ROM;
+/* END GENERATED layout declarations */
 
 #endif

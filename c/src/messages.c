@@ -22,21 +22,9 @@
 typedef char position_is_four_words[sizeof(ctrlbus_position_t) == 16u ? 1 : -1];
 /* Runs of same-type members the layouts write as one field (no padding between them). */
 #define FOLLOWS(type, first, second, width) (offsetof(type, second) == offsetof(type, first) + (width))
-typedef char runs_are_contiguous
-    [FOLLOWS(ctrlbus_connect_base_answer_t, firmware_version, hardware_version, 2u) &&
-             FOLLOWS(ctrlbus_get_base_motor_data_answer_t, left_distance_mm, right_distance_mm, 4u) &&
-             FOLLOWS(ctrlbus_set_v_and_get_deadreckon_answer_t, dx_mm_q16, dy_mm_q16, 4u) &&
-             FOLLOWS(ctrlbus_set_v_and_get_deadreckon_answer_t, dy_mm_q16, dtheta_deg_q16, 4u) &&
-             FOLLOWS(ctrlbus_get_base_conf_answer_t, motor_type, sensor_num, 1u) &&
-             FOLLOWS(ctrlbus_get_base_status_answer_t, battery_percent, power_status, 1u) &&
-             FOLLOWS(ctrlbus_get_charger_data_answer_t, beacon_count, probe_count, 1u) &&
-             FOLLOWS(ctrlbus_health_get_health_answer_t, flags, error_count, 1u)
-         ? 1
-         : -1];
 
-/* Every field offset of a layout fits a byte (the largest: GET_BASE_CONF's bumpers), every
- * count its six bits (the largest: a run of positions, a health message). */
-typedef char offsets_fit_a_byte[offsetof(ctrlbus_get_base_conf_answer_t, bumpers) < 256u ? 1 : -1];
+/* Every count of a layout fits its six bits (the largest: a run of positions, a health message);
+ * every offset fits a byte (checked with the layouts). */
 typedef char counts_fit_six_bits
     [POSITION_WORDS < 64u && CTRLBUS_SENSOR_CHANNELS < 64u && CTRLBUS_HEALTH_MESSAGE_LEN < 64u ? 1
                                                                                               : -1];
@@ -216,6 +204,112 @@ int32_t ctrlbus_request_decode(ctrlbus_request_t *out, uint8_t cmd, const uint8_
 
 /* ---- answers: one encoder per layout -------------------------------------------------------- */
 
+/* Each answer's fields in wire order (codec.h): the encoders below and the master's decoders
+ * (messages_master.c) walk the same tables. */
+/* BEGIN GENERATED layouts (make generate: from protocol/ctrlbus.json) */
+typedef char ctrlbus_codec_layouts_fit_their_structs
+    [offsetof(ctrlbus_connect_base_answer_t, model) < 256u &&
+             FOLLOWS(ctrlbus_connect_base_answer_t, firmware_version, hardware_version, 2u) &&
+             offsetof(ctrlbus_connect_base_answer_t, hardware_version) < 256u &&
+             offsetof(ctrlbus_connect_base_answer_t, serial) < 256u &&
+             offsetof(ctrlbus_connect_base_answer_t, firmware_version_suffix) < 256u &&
+             offsetof(ctrlbus_get_base_conf_answer_t, base_type) < 256u &&
+             offsetof(ctrlbus_get_base_conf_answer_t, base_radius_mm_q8) < 256u &&
+             FOLLOWS(ctrlbus_get_base_conf_answer_t, motor_type, sensor_num, 1u) &&
+             offsetof(ctrlbus_get_base_conf_answer_t, sensor_num) < 256u &&
+             offsetof(ctrlbus_get_base_conf_answer_t, sensors) < 256u &&
+             offsetof(ctrlbus_get_base_conf_answer_t, bumper_num) < 256u &&
+             offsetof(ctrlbus_get_base_conf_answer_t, bumpers) < 256u &&
+             FOLLOWS(ctrlbus_get_base_status_answer_t, battery_percent, power_status, 1u) &&
+             offsetof(ctrlbus_get_base_status_answer_t, power_status) < 256u &&
+             FOLLOWS(ctrlbus_get_base_motor_data_answer_t, left_distance_mm, right_distance_mm, 4u) &&
+             offsetof(ctrlbus_get_base_motor_data_answer_t, right_distance_mm) < 256u &&
+             offsetof(ctrlbus_get_base_motor_data_answer_t, status) < 256u &&
+             offsetof(ctrlbus_get_base_sensor_data_answer_t, distances_mm_q16) < 256u &&
+             offsetof(ctrlbus_get_base_bumper_data_answer_t, bitmap) < 256u &&
+             FOLLOWS(ctrlbus_get_charger_data_answer_t, beacon_count, probe_count, 1u) &&
+             offsetof(ctrlbus_get_charger_data_answer_t, probe_count) < 256u &&
+             FOLLOWS(ctrlbus_set_v_and_get_deadreckon_answer_t, dx_mm_q16, dy_mm_q16, 4u) &&
+             FOLLOWS(ctrlbus_set_v_and_get_deadreckon_answer_t, dy_mm_q16, dtheta_deg_q16, 4u) &&
+             offsetof(ctrlbus_set_v_and_get_deadreckon_answer_t, dtheta_deg_q16) < 256u &&
+             offsetof(ctrlbus_set_v_and_get_deadreckon_answer_t, status) < 256u &&
+             offsetof(ctrlbus_set_v_and_get_deadreckon_answer_t, timestamp_ms) < 256u &&
+             FOLLOWS(ctrlbus_health_get_health_answer_t, flags, error_count, 1u) &&
+             offsetof(ctrlbus_health_get_health_answer_t, error_count) < 256u &&
+             offsetof(ctrlbus_health_get_error_answer_t, error_code) < 256u &&
+             offsetof(ctrlbus_health_get_error_answer_t, message) < 256u
+         ? 1
+         : -1];
+
+/* CONNECT_BASE (docs/protocol.md [connect]) */
+const ctrlbus_codec_field_t ctrlbus_codec_connect_base_layout[] CODEC_ROM = {
+    CODEC_FIELD(ctrlbus_connect_base_answer_t, model, FIELD_TEXT, CTRLBUS_MODEL_LEN),
+    CODEC_FIELD(ctrlbus_connect_base_answer_t, firmware_version, FIELD_U16, 2), /* + hardware_version */
+    CODEC_FIELD(ctrlbus_connect_base_answer_t, serial, FIELD_U32, CTRLBUS_SERIAL_WORDS),
+    CODEC_FIELD(ctrlbus_connect_base_answer_t, firmware_version_suffix, FIELD_TEXT, CTRLBUS_FIRMWARE_VERSION_SUFFIX_LEN),
+};
+
+/* GET_BASE_CONF (docs/protocol.md [base-conf]) */
+const ctrlbus_codec_field_t ctrlbus_codec_get_base_conf_layout[] CODEC_ROM = {
+    CODEC_FIELD(ctrlbus_get_base_conf_answer_t, base_type, FIELD_U8, 1),
+    CODEC_FIELD(ctrlbus_get_base_conf_answer_t, base_radius_mm_q8, FIELD_U32, 1),
+    CODEC_FIELD(ctrlbus_get_base_conf_answer_t, motor_type, FIELD_U8, 2), /* + sensor_num */
+    CODEC_FIELD(ctrlbus_get_base_conf_answer_t, sensors, FIELD_U32, CTRLBUS_CONF_SLOTS * 4u),
+    CODEC_FIELD(ctrlbus_get_base_conf_answer_t, bumper_num, FIELD_U8, 1),
+    CODEC_FIELD(ctrlbus_get_base_conf_answer_t, bumpers, FIELD_U32, CTRLBUS_CONF_SLOTS * 4u),
+};
+
+/* GET_BASE_CONF_ADV (docs/protocol.md [base-conf-adv]) */
+const ctrlbus_codec_field_t ctrlbus_codec_get_base_conf_adv_layout[] CODEC_ROM = {
+    CODEC_FIELD_BYTES(ctrlbus_get_base_conf_adv_answer_t, blob),
+};
+
+/* GET_BASE_STATUS (docs/protocol.md [status]) */
+const ctrlbus_codec_field_t ctrlbus_codec_get_base_status_layout[] CODEC_ROM = {
+    CODEC_FIELD(ctrlbus_get_base_status_answer_t, battery_percent, FIELD_U8, 2), /* + power_status */
+};
+
+/* GET_BASE_MOTOR_DATA (docs/protocol.md [motor-data]) */
+const ctrlbus_codec_field_t ctrlbus_codec_get_base_motor_data_layout[] CODEC_ROM = {
+    CODEC_FIELD(ctrlbus_get_base_motor_data_answer_t, left_distance_mm, FIELD_U32, 2), /* + right_distance_mm */
+    CODEC_FIELD(ctrlbus_get_base_motor_data_answer_t, status, FIELD_U8, 1),
+};
+
+/* GET_BASE_SENSOR_DATA (docs/protocol.md [sensor-data]) */
+const ctrlbus_codec_field_t ctrlbus_codec_get_base_sensor_data_layout[] CODEC_ROM = {
+    CODEC_FIELD(ctrlbus_get_base_sensor_data_answer_t, distances_mm_q16, FIELD_U32, CTRLBUS_SENSOR_CHANNELS),
+};
+
+/* GET_BASE_BUMPER_DATA (docs/protocol.md [bumper-data]) */
+const ctrlbus_codec_field_t ctrlbus_codec_get_base_bumper_data_layout[] CODEC_ROM = {
+    CODEC_FIELD(ctrlbus_get_base_bumper_data_answer_t, bitmap, FIELD_U32, 1),
+};
+
+/* GET_CHARGER_DATA (docs/protocol.md [charger-data]) */
+const ctrlbus_codec_field_t ctrlbus_codec_get_charger_data_layout[] CODEC_ROM = {
+    CODEC_FIELD(ctrlbus_get_charger_data_answer_t, beacon_count, FIELD_U8, 2), /* + probe_count */
+    CODEC_FIELD_BYTES(ctrlbus_get_charger_data_answer_t, probes),
+};
+
+/* SET_V_AND_GET_DEADRECKON (docs/protocol.md [set-v]) */
+const ctrlbus_codec_field_t ctrlbus_codec_set_v_and_get_deadreckon_layout[] CODEC_ROM = {
+    CODEC_FIELD(ctrlbus_set_v_and_get_deadreckon_answer_t, dx_mm_q16, FIELD_U32, 3), /* + dy_mm_q16 + dtheta_deg_q16 */
+    CODEC_FIELD(ctrlbus_set_v_and_get_deadreckon_answer_t, status, FIELD_U8, 1),
+    CODEC_FIELD(ctrlbus_set_v_and_get_deadreckon_answer_t, timestamp_ms, FIELD_U32, 1),
+};
+
+/* HEALTH_GET_HEALTH (docs/protocol.md [health]) */
+const ctrlbus_codec_field_t ctrlbus_codec_health_get_health_layout[] CODEC_ROM = {
+    CODEC_FIELD(ctrlbus_health_get_health_answer_t, flags, FIELD_U8, 2), /* + error_count */
+};
+
+/* HEALTH_GET_ERROR (docs/protocol.md [health]) */
+const ctrlbus_codec_field_t ctrlbus_codec_health_get_error_layout[] CODEC_ROM = {
+    CODEC_FIELD(ctrlbus_health_get_error_answer_t, error_code, FIELD_U32, 1),
+    CODEC_FIELD(ctrlbus_health_get_error_answer_t, message, FIELD_TEXT, CTRLBUS_HEALTH_MESSAGE_LEN),
+};
+/* END GENERATED layouts */
+
 /* The one field writer: walks a layout's fields until `size` bytes are out (the size, checked
  * before, decides the optional tail fields and the short bumper form). A run of integers goes
  * out straight from the struct where the host is little-endian (one write call), value by value
@@ -329,27 +423,6 @@ int32_t ctrlbus_connect_base_answer_size(const ctrlbus_connect_base_answer_t *a)
     return size;
 }
 
-const ctrlbus_codec_field_t ctrlbus_codec_connect_base_layout[] CODEC_ROM = {
-    CODEC_FIELD(ctrlbus_connect_base_answer_t, model, FIELD_TEXT, CTRLBUS_MODEL_LEN),
-    CODEC_FIELD(ctrlbus_connect_base_answer_t, firmware_version, FIELD_U16, 2), /* + hw */
-    CODEC_FIELD(ctrlbus_connect_base_answer_t, serial, FIELD_U32, CTRLBUS_SERIAL_WORDS),
-    /* only in the 39-byte form: the size ends the walk before it */
-    CODEC_FIELD(ctrlbus_connect_base_answer_t, firmware_version_suffix, FIELD_TEXT, CTRLBUS_FIRMWARE_VERSION_SUFFIX_LEN),
-};
-
-void ctrlbus_connect_base_answer_put(ctrlbus_sink_t *sink, const ctrlbus_connect_base_answer_t *a)
-{
-    put_checked(sink, ctrlbus_connect_base_answer_size(a), ctrlbus_codec_connect_base_layout, a);
-}
-
-int32_t ctrlbus_connect_base_answer_write(ctrlbus_sink_t *sink,
-                                          const ctrlbus_connect_base_answer_t *a,
-                                          ctrlbus_frame_type_t type)
-{
-    return ctrlbus_codec_write_ok(sink, ctrlbus_connect_base_answer_size(a),
-                                  ctrlbus_codec_connect_base_layout, a, type);
-}
-
 /* GET_BASE_CONF */
 
 int32_t ctrlbus_get_base_conf_answer_size(const ctrlbus_get_base_conf_answer_t *a)
@@ -360,117 +433,18 @@ int32_t ctrlbus_get_base_conf_answer_size(const ctrlbus_get_base_conf_answer_t *
     return CTRLBUS_GET_BASE_CONF_ANSWER_SIZE;
 }
 
-const ctrlbus_codec_field_t ctrlbus_codec_get_base_conf_layout[] CODEC_ROM = {
-    CODEC_FIELD(ctrlbus_get_base_conf_answer_t, base_type, FIELD_U8, 1),
-    CODEC_FIELD(ctrlbus_get_base_conf_answer_t, base_radius_mm_q8, FIELD_U32, 1),
-    CODEC_FIELD(ctrlbus_get_base_conf_answer_t, motor_type, FIELD_U8, 2), /* + sensor_num */
-    /* a position is four 32-bit words: the slots are one run of words */
-    CODEC_FIELD(ctrlbus_get_base_conf_answer_t, sensors, FIELD_U32, POSITION_WORDS),
-    CODEC_FIELD(ctrlbus_get_base_conf_answer_t, bumper_num, FIELD_U8, 1),
-    CODEC_FIELD(ctrlbus_get_base_conf_answer_t, bumpers, FIELD_U32, POSITION_WORDS),
-};
-
-void ctrlbus_get_base_conf_answer_put(ctrlbus_sink_t *sink, const ctrlbus_get_base_conf_answer_t *a)
-{
-    put_checked(sink, ctrlbus_get_base_conf_answer_size(a), ctrlbus_codec_get_base_conf_layout, a);
-}
-
-int32_t ctrlbus_get_base_conf_answer_write(ctrlbus_sink_t *sink,
-                                           const ctrlbus_get_base_conf_answer_t *a,
-                                           ctrlbus_frame_type_t type)
-{
-    return ctrlbus_codec_write_ok(sink, ctrlbus_get_base_conf_answer_size(a),
-                                  ctrlbus_codec_get_base_conf_layout, a, type);
-}
-
 /* GET_BASE_CONF_ADV */
 
-static int32_t get_base_conf_adv_size(const ctrlbus_get_base_conf_adv_answer_t *a)
+static int32_t ctrlbus_get_base_conf_adv_answer_size(const ctrlbus_get_base_conf_adv_answer_t *a)
 {
     return a != NULL ? bytes_size(a->blob, a->blob_len) : CTRLBUS_ERR_ARGUMENT;
 }
 
-static const ctrlbus_codec_field_t get_base_conf_adv_layout[] CODEC_ROM = {
-    CODEC_FIELD_BYTES(ctrlbus_get_base_conf_adv_answer_t, blob),
-};
-
-void ctrlbus_get_base_conf_adv_answer_put(ctrlbus_sink_t *sink,
-                                          const ctrlbus_get_base_conf_adv_answer_t *a)
-{
-    put_checked(sink, get_base_conf_adv_size(a), get_base_conf_adv_layout, a);
-}
-
-int32_t ctrlbus_get_base_conf_adv_answer_write(ctrlbus_sink_t *sink,
-                                               const ctrlbus_get_base_conf_adv_answer_t *a,
-                                               ctrlbus_frame_type_t type)
-{
-    return ctrlbus_codec_write_ok(sink, get_base_conf_adv_size(a),
-                                  get_base_conf_adv_layout, a, type);
-}
-
 /* GET_BASE_STATUS */
-
-const ctrlbus_codec_field_t ctrlbus_codec_get_base_status_layout[] CODEC_ROM = {
-    CODEC_FIELD(ctrlbus_get_base_status_answer_t, battery_percent, FIELD_U8, 2), /* + power_status */
-};
-
-void ctrlbus_get_base_status_answer_put(ctrlbus_sink_t *sink,
-                                        const ctrlbus_get_base_status_answer_t *a)
-{
-    put_checked(sink, fixed_size(a, CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE),
-                ctrlbus_codec_get_base_status_layout, a);
-}
-
-int32_t ctrlbus_get_base_status_answer_write(ctrlbus_sink_t *sink,
-                                             const ctrlbus_get_base_status_answer_t *a,
-                                             ctrlbus_frame_type_t type)
-{
-    return ctrlbus_codec_write_ok(sink, fixed_size(a, CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE),
-                                  ctrlbus_codec_get_base_status_layout, a, type);
-}
 
 /* GET_BASE_MOTOR_DATA */
 
-const ctrlbus_codec_field_t ctrlbus_codec_get_base_motor_data_layout[] CODEC_ROM = {
-    CODEC_FIELD(ctrlbus_get_base_motor_data_answer_t, left_distance_mm, FIELD_U32, 2),
-    CODEC_FIELD(ctrlbus_get_base_motor_data_answer_t, status, FIELD_U8, 1),
-};
-
-void ctrlbus_get_base_motor_data_answer_put(ctrlbus_sink_t *sink,
-                                            const ctrlbus_get_base_motor_data_answer_t *a)
-{
-    put_checked(sink, fixed_size(a, CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE),
-                ctrlbus_codec_get_base_motor_data_layout, a);
-}
-
-int32_t ctrlbus_get_base_motor_data_answer_write(ctrlbus_sink_t *sink,
-                                                 const ctrlbus_get_base_motor_data_answer_t *a,
-                                                 ctrlbus_frame_type_t type)
-{
-    return ctrlbus_codec_write_ok(sink, fixed_size(a, CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE),
-                                  ctrlbus_codec_get_base_motor_data_layout, a, type);
-}
-
 /* GET_BASE_SENSOR_DATA */
-
-const ctrlbus_codec_field_t ctrlbus_codec_get_base_sensor_data_layout[] CODEC_ROM = {
-    CODEC_FIELD(ctrlbus_get_base_sensor_data_answer_t, distances_mm_q16, FIELD_U32, CTRLBUS_SENSOR_CHANNELS),
-};
-
-void ctrlbus_get_base_sensor_data_answer_put(ctrlbus_sink_t *sink,
-                                             const ctrlbus_get_base_sensor_data_answer_t *a)
-{
-    put_checked(sink, fixed_size(a, CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE),
-                ctrlbus_codec_get_base_sensor_data_layout, a);
-}
-
-int32_t ctrlbus_get_base_sensor_data_answer_write(ctrlbus_sink_t *sink,
-                                                  const ctrlbus_get_base_sensor_data_answer_t *a,
-                                                  ctrlbus_frame_type_t type)
-{
-    return ctrlbus_codec_write_ok(sink, fixed_size(a, CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE),
-                                  ctrlbus_codec_get_base_sensor_data_layout, a, type);
-}
 
 /* GET_BASE_BUMPER_DATA */
 
@@ -486,26 +460,6 @@ int32_t ctrlbus_get_base_bumper_data_answer_size(const ctrlbus_get_base_bumper_d
     return a->payload_size;
 }
 
-const ctrlbus_codec_field_t ctrlbus_codec_get_base_bumper_data_layout[] CODEC_ROM = {
-    /* payload_size (1..4) low bytes of the bitmap: the size cuts the word short */
-    CODEC_FIELD(ctrlbus_get_base_bumper_data_answer_t, bitmap, FIELD_U32, 1),
-};
-
-void ctrlbus_get_base_bumper_data_answer_put(ctrlbus_sink_t *sink,
-                                             const ctrlbus_get_base_bumper_data_answer_t *a)
-{
-    put_checked(sink, ctrlbus_get_base_bumper_data_answer_size(a),
-                ctrlbus_codec_get_base_bumper_data_layout, a);
-}
-
-int32_t ctrlbus_get_base_bumper_data_answer_write(ctrlbus_sink_t *sink,
-                                                  const ctrlbus_get_base_bumper_data_answer_t *a,
-                                                  ctrlbus_frame_type_t type)
-{
-    return ctrlbus_codec_write_ok(sink, ctrlbus_get_base_bumper_data_answer_size(a),
-                                  ctrlbus_codec_get_base_bumper_data_layout, a, type);
-}
-
 /* GET_CHARGER_DATA */
 
 int32_t ctrlbus_get_charger_data_answer_size(const ctrlbus_get_charger_data_answer_t *a)
@@ -516,58 +470,13 @@ int32_t ctrlbus_get_charger_data_answer_size(const ctrlbus_get_charger_data_answ
     return (int32_t)CTRLBUS_GET_CHARGER_DATA_ANSWER_MIN + a->probe_count;
 }
 
-const ctrlbus_codec_field_t ctrlbus_codec_get_charger_data_layout[] CODEC_ROM = {
-    CODEC_FIELD(ctrlbus_get_charger_data_answer_t, beacon_count, FIELD_U8, 2), /* + probe_count */
-    CODEC_FIELD_BYTES(ctrlbus_get_charger_data_answer_t, probes),
-};
-
-void ctrlbus_get_charger_data_answer_put(ctrlbus_sink_t *sink,
-                                         const ctrlbus_get_charger_data_answer_t *a)
-{
-    put_checked(sink, ctrlbus_get_charger_data_answer_size(a),
-                ctrlbus_codec_get_charger_data_layout, a);
-}
-
-int32_t ctrlbus_get_charger_data_answer_write(ctrlbus_sink_t *sink,
-                                              const ctrlbus_get_charger_data_answer_t *a,
-                                              ctrlbus_frame_type_t type)
-{
-    return ctrlbus_codec_write_ok(sink, ctrlbus_get_charger_data_answer_size(a),
-                                  ctrlbus_codec_get_charger_data_layout, a, type);
-}
-
 /* SET_V_AND_GET_DEADRECKON */
 
 int32_t ctrlbus_set_v_and_get_deadreckon_answer_size(
     const ctrlbus_set_v_and_get_deadreckon_answer_t *a)
 {
-    if (a == NULL) {
-        return CTRLBUS_ERR_ARGUMENT;
-    }
-    return a->has_timestamp_ms ? CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_WITH_TIMESTAMP
-                               : CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE;
-}
-
-const ctrlbus_codec_field_t ctrlbus_codec_set_v_and_get_deadreckon_layout[] CODEC_ROM = {
-    CODEC_FIELD(ctrlbus_set_v_and_get_deadreckon_answer_t, dx_mm_q16, FIELD_U32, 3),
-    CODEC_FIELD(ctrlbus_set_v_and_get_deadreckon_answer_t, status, FIELD_U8, 1),
-    /* only in the 17-byte form: the size ends the walk before it */
-    CODEC_FIELD(ctrlbus_set_v_and_get_deadreckon_answer_t, timestamp_ms, FIELD_U32, 1),
-};
-
-void ctrlbus_set_v_and_get_deadreckon_answer_put(
-    ctrlbus_sink_t *sink, const ctrlbus_set_v_and_get_deadreckon_answer_t *a)
-{
-    put_checked(sink, ctrlbus_set_v_and_get_deadreckon_answer_size(a),
-                ctrlbus_codec_set_v_and_get_deadreckon_layout, a);
-}
-
-int32_t ctrlbus_set_v_and_get_deadreckon_answer_write(
-    ctrlbus_sink_t *sink, const ctrlbus_set_v_and_get_deadreckon_answer_t *a,
-    ctrlbus_frame_type_t type)
-{
-    return ctrlbus_codec_write_ok(sink, ctrlbus_set_v_and_get_deadreckon_answer_size(a),
-                                  ctrlbus_codec_set_v_and_get_deadreckon_layout, a, type);
+    return a != NULL ? (int32_t)CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_OF(a)
+                     : CTRLBUS_ERR_ARGUMENT;
 }
 
 /* POLL_BASE_CMD */
@@ -613,25 +522,6 @@ int32_t ctrlbus_poll_base_cmd_answer_write(ctrlbus_sink_t *sink,
 
 /* HEALTH_GET_HEALTH */
 
-const ctrlbus_codec_field_t ctrlbus_codec_health_get_health_layout[] CODEC_ROM = {
-    CODEC_FIELD(ctrlbus_health_get_health_answer_t, flags, FIELD_U8, 2), /* + error_count */
-};
-
-void ctrlbus_health_get_health_answer_put(ctrlbus_sink_t *sink,
-                                          const ctrlbus_health_get_health_answer_t *a)
-{
-    put_checked(sink, fixed_size(a, CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE),
-                ctrlbus_codec_health_get_health_layout, a);
-}
-
-int32_t ctrlbus_health_get_health_answer_write(ctrlbus_sink_t *sink,
-                                               const ctrlbus_health_get_health_answer_t *a,
-                                               ctrlbus_frame_type_t type)
-{
-    return ctrlbus_codec_write_ok(sink, fixed_size(a, CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE),
-                                  ctrlbus_codec_health_get_health_layout, a, type);
-}
-
 /* HEALTH_GET_ERROR */
 
 int32_t ctrlbus_health_get_error_answer_size(const ctrlbus_health_get_error_answer_t *a)
@@ -642,25 +532,33 @@ int32_t ctrlbus_health_get_error_answer_size(const ctrlbus_health_get_error_answ
                      : CTRLBUS_ERR_ARGUMENT;
 }
 
-const ctrlbus_codec_field_t ctrlbus_codec_health_get_error_layout[] CODEC_ROM = {
-    CODEC_FIELD(ctrlbus_health_get_error_answer_t, error_code, FIELD_U32, 1),
-    CODEC_FIELD(ctrlbus_health_get_error_answer_t, message, FIELD_TEXT, CTRLBUS_HEALTH_MESSAGE_LEN),
-};
+/* Each answer's public encoders (messages.h): its check (`size`, an expression of the answer `a`),
+ * then its fields through its layout. */
+#define ANSWER_ENCODERS(name, size)                                                                \
+    void ctrlbus_##name##_answer_put(ctrlbus_sink_t *sink, const ctrlbus_##name##_answer_t *a)     \
+    {                                                                                              \
+        put_checked(sink, size, ctrlbus_codec_##name##_layout, a);                                 \
+    }                                                                                              \
+    int32_t ctrlbus_##name##_answer_write(ctrlbus_sink_t *sink, const ctrlbus_##name##_answer_t *a, \
+                                          ctrlbus_frame_type_t type)                               \
+    {                                                                                              \
+        return ctrlbus_codec_write_ok(sink, size, ctrlbus_codec_##name##_layout, a, type);         \
+    }
 
-void ctrlbus_health_get_error_answer_put(ctrlbus_sink_t *sink,
-                                         const ctrlbus_health_get_error_answer_t *a)
-{
-    put_checked(sink, ctrlbus_health_get_error_answer_size(a),
-                ctrlbus_codec_health_get_error_layout, a);
-}
-
-int32_t ctrlbus_health_get_error_answer_write(ctrlbus_sink_t *sink,
-                                              const ctrlbus_health_get_error_answer_t *a,
-                                              ctrlbus_frame_type_t type)
-{
-    return ctrlbus_codec_write_ok(sink, ctrlbus_health_get_error_answer_size(a),
-                                  ctrlbus_codec_health_get_error_layout, a, type);
-}
+/* BEGIN GENERATED encoders (make generate: from protocol/ctrlbus.json) */
+ANSWER_ENCODERS(connect_base, ctrlbus_connect_base_answer_size(a))
+ANSWER_ENCODERS(get_base_conf, ctrlbus_get_base_conf_answer_size(a))
+ANSWER_ENCODERS(get_base_conf_adv, ctrlbus_get_base_conf_adv_answer_size(a))
+ANSWER_ENCODERS(get_base_status, fixed_size(a, CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE))
+ANSWER_ENCODERS(get_base_motor_data, fixed_size(a, CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE))
+ANSWER_ENCODERS(get_base_sensor_data, fixed_size(a, CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE))
+ANSWER_ENCODERS(get_base_bumper_data, ctrlbus_get_base_bumper_data_answer_size(a))
+ANSWER_ENCODERS(get_charger_data, ctrlbus_get_charger_data_answer_size(a))
+ANSWER_ENCODERS(set_v_and_get_deadreckon,
+                a != NULL ? (int32_t)CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_OF(a) : CTRLBUS_ERR_ARGUMENT)
+ANSWER_ENCODERS(health_get_health, fixed_size(a, CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE))
+ANSWER_ENCODERS(health_get_error, ctrlbus_health_get_error_answer_size(a))
+/* END GENERATED encoders */
 
 /* Empty OK answers and ERROR answers. */
 
@@ -709,17 +607,17 @@ static int32_t ok_layout(const ctrlbus_answer_t *a, ctrlbus_codec_layout_t *layo
         *layout = ctrlbus_codec_get_base_conf_layout;
         return ctrlbus_get_base_conf_answer_size(&a->as.get_base_conf);
     case CTRLBUS_REQ_GET_BASE_CONF_ADV:
-        *layout = get_base_conf_adv_layout;
-        return get_base_conf_adv_size(&a->as.get_base_conf_adv);
+        *layout = ctrlbus_codec_get_base_conf_adv_layout;
+        return ctrlbus_get_base_conf_adv_answer_size(&a->as.get_base_conf_adv);
     case CTRLBUS_REQ_GET_BASE_STATUS:
         *layout = ctrlbus_codec_get_base_status_layout;
-        return CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE;
+        return (int32_t)CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE_OF(&a->as.get_base_status);
     case CTRLBUS_REQ_GET_BASE_MOTOR_DATA:
         *layout = ctrlbus_codec_get_base_motor_data_layout;
-        return CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE;
+        return (int32_t)CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE_OF(&a->as.get_base_motor_data);
     case CTRLBUS_REQ_GET_BASE_SENSOR_DATA:
         *layout = ctrlbus_codec_get_base_sensor_data_layout;
-        return CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE;
+        return (int32_t)CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE_OF(&a->as.get_base_sensor_data);
     case CTRLBUS_REQ_GET_BASE_BUMPER_DATA:
         *layout = ctrlbus_codec_get_base_bumper_data_layout;
         return ctrlbus_get_base_bumper_data_answer_size(&a->as.get_base_bumper_data);
@@ -733,7 +631,7 @@ static int32_t ok_layout(const ctrlbus_answer_t *a, ctrlbus_codec_layout_t *layo
         return ctrlbus_poll_base_cmd_answer_size(&a->as.poll_base_cmd);
     case CTRLBUS_REQ_HEALTH_GET_HEALTH:
         *layout = ctrlbus_codec_health_get_health_layout;
-        return CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE;
+        return (int32_t)CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE_OF(&a->as.health_get_health);
     case CTRLBUS_REQ_HEALTH_GET_ERROR:
         *layout = ctrlbus_codec_health_get_error_layout;
         return ctrlbus_health_get_error_answer_size(&a->as.health_get_error);

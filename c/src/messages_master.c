@@ -13,37 +13,129 @@
 
 /* ---- reading fields ------------------------------------------------------------------------- */
 
-/* A text field of field_size bytes into out[out_size]: the ASCII characters before the first NUL,
- * NUL-terminated. FORMAT for a byte above 0x7F before the NUL, or for text that leaves no room for
- * the terminator in out (out_size == field_size means the field itself must hold a NUL). */
-static int32_t take_text(const uint8_t **p, char *out, size_t out_size, size_t field_size)
+/* An answer's fields read through its layout (codec.h): the table the encoder walks, walked the
+ * other way. Integers are assembled from their little-endian bytes (any host, any alignment of
+ * the payload; a word the payload ends inside is zero-padded: the short bumper forms); text is
+ * copied up to its NUL and zero-filled after it, FORMAT for a byte above 0x7F before the NUL.
+ * The walk ends with the payload, or at the BYTES field (the caller points it at the rest). */
+static int32_t take_fields(ctrlbus_codec_layout_t layout, void *answer, const uint8_t *payload,
+                           size_t len)
 {
-    const uint8_t *field = *p;
-    *p += field_size;
-    size_t len = 0;
-    while (len < field_size && field[len] != 0) {
-        if (field[len] > 0x7Fu) {
-            return CTRLBUS_ERR_FORMAT;
+    for (; len > 0u; layout++) {
+        uint8_t *at = (uint8_t *)answer + CODEC_ROM_BYTE(&layout->offset);
+        uint8_t shape = CODEC_ROM_BYTE(&layout->shape);
+        size_t count = (size_t)(shape >> 2);
+        uint8_t kind = (uint8_t)(shape & 3u);
+        if (count == 0u) {
+            return CTRLBUS_OK; /* BYTES */
         }
-        len++;
+        if (kind == FIELD_TEXT) {
+            bool ended = false;
+            for (; count > 0u && len > 0u; count--, len--, payload++) {
+                if (!ended && *payload > 0x7Fu) {
+                    return CTRLBUS_ERR_FORMAT;
+                }
+                ended = ended || *payload == 0u;
+                *at++ = ended ? 0u : *payload;
+            }
+            continue;
+        }
+        size_t width = (size_t)1u << kind;
+        for (; count > 0u && len > 0u; count--, at += width) {
+            size_t piece = width < len ? width : len;
+            uint32_t value = 0;
+            for (size_t i = 0; i < piece; i++) {
+                value |= (uint32_t)payload[i] << (8u * i);
+            }
+            payload += piece;
+            len -= piece;
+            /* int32_t members alike: a signed type may be read and written as its unsigned one */
+            if (width == 4u) {
+                *(uint32_t *)(void *)at = value;
+            } else if (width == 2u) {
+                *(uint16_t *)(void *)at = (uint16_t)value;
+            } else {
+                *at = (uint8_t)value;
+            }
+        }
     }
-    if (len >= out_size) {
-        return CTRLBUS_ERR_FORMAT;
-    }
-    for (size_t i = 0; i < len; i++) {
-        out[i] = (char)field[i];
-    }
-    memset(out + len, 0, out_size - len);
     return CTRLBUS_OK;
 }
 
-static void take_position(const uint8_t **p, ctrlbus_position_t *out)
+/* How an answer is decoded, beside its layout (the generated DECODINGS below): the payload sizes
+ * its forms allow, the members its length sets, the checks after its fields. Offsets are of the
+ * answer struct; NONE where there is no such member. */
+#define NONE 0xFFu
+typedef enum {
+    DECODE_EXACT,   /* short_size or long_size (the optional tail field's form) */
+    DECODE_UP_TO,   /* short_size..long_size: the last word cut short (the bumper forms) */
+    DECODE_COUNTED, /* short_size + the count in the byte before the BYTES field */
+    DECODE_ANY      /* any length: a BYTES field only */
+} ctrlbus_codec_sizing_t;
+
+typedef struct {
+    ctrlbus_codec_layout_t layout;
+    uint16_t out_size;
+    uint16_t short_size;
+    uint16_t long_size;
+    uint8_t sizing;      /* ctrlbus_codec_sizing_t */
+    uint8_t length_at;   /* a bool: the long form was sent (EXACT), or a uint8_t: the length (UP_TO) */
+    uint8_t rest_at;     /* the BYTES field's pointer: the payload after the fields; for DECODE_ANY
+                          * its size_t length follows it */
+    uint8_t limit_max;   /* what the bytes at limit_at may hold at most (else FORMAT) */
+    uint8_t limit_at[2];
+} ctrlbus_codec_decoding_t;
+
+static bool size_allowed(const ctrlbus_codec_decoding_t *how, const uint8_t *payload, size_t len)
 {
-    out->x_mm_q8 = codec_take_s32(p);
-    out->y_mm_q8 = codec_take_s32(p);
-    out->z_mm_q8 = codec_take_s32(p);
-    out->angle_deg_q8 = codec_take_u32(p);
+    switch (how->sizing) {
+    case DECODE_EXACT: return len == how->short_size || len == how->long_size;
+    case DECODE_UP_TO: return len >= how->short_size && len <= how->long_size;
+    case DECODE_COUNTED:
+        return len >= how->short_size && len == how->short_size + payload[how->short_size - 1u];
+    default: return true;
+    }
 }
+
+/* Every answer decoder: pointers checked, then the length its forms allow, then the struct cleared
+ * (fields of a shorter form read as zero), filled through its layout, and checked. */
+static int32_t take_answer(const ctrlbus_codec_decoding_t *how, void *out, const uint8_t *payload,
+                           size_t len)
+{
+    if (out == NULL || (payload == NULL && len > 0)) {
+        return CTRLBUS_ERR_ARGUMENT;
+    }
+    if (!size_allowed(how, payload, len)) {
+        return CTRLBUS_ERR_FORMAT;
+    }
+    memset(out, 0, how->out_size);
+    int32_t result = take_fields(how->layout, out, payload, len);
+    uint8_t *bytes = (uint8_t *)out;
+    if (how->length_at != NONE) {
+        bool long_form = len == how->long_size;
+        bytes[how->length_at] = (uint8_t)(how->sizing == DECODE_UP_TO ? len : (size_t)long_form);
+    }
+    if (how->rest_at != NONE && payload != NULL) {
+        *(const uint8_t **)(void *)(bytes + how->rest_at) = payload + how->short_size;
+    }
+    if (how->sizing == DECODE_ANY) {
+        *(size_t *)(void *)(bytes + how->rest_at + sizeof(const uint8_t *)) = len;
+    }
+    for (size_t i = 0; i < 2u && result == CTRLBUS_OK; i++) {
+        if (how->limit_at[i] != NONE && bytes[how->limit_at[i]] > how->limit_max) {
+            result = CTRLBUS_ERR_FORMAT;
+        }
+    }
+    return result;
+}
+
+/* A public answer decoder (messages.h): its answer's row of DECODINGS. */
+#define ANSWER_DECODER(name, row)                                                                  \
+    int32_t ctrlbus_##name##_answer_decode(ctrlbus_##name##_answer_t *out, const uint8_t *payload, \
+                                           size_t len)                                             \
+    {                                                                                              \
+        return take_answer(&DECODINGS[row], out, payload, len);                                    \
+    }
 
 /* Common checks of every decoder: pointers, then the exact length. */
 static int32_t check_decode(const void *out, const uint8_t *payload, size_t len, size_t expected)
@@ -196,169 +288,184 @@ int32_t ctrlbus_request_encode(uint8_t *out, size_t out_size, const ctrlbus_requ
 
 /* ---- answers: one decoder per layout -------------------------------------------------------- */
 
-int32_t ctrlbus_connect_base_answer_decode(ctrlbus_connect_base_answer_t *out,
-                                           const uint8_t *payload, size_t len)
-{
-    bool with_suffix = len == CTRLBUS_CONNECT_BASE_ANSWER_SIZE_WITH_SUFFIX;
-    int32_t result = check_decode(out, payload, len,
-                                  with_suffix ? CTRLBUS_CONNECT_BASE_ANSWER_SIZE_WITH_SUFFIX
-                                              : CTRLBUS_CONNECT_BASE_ANSWER_SIZE);
-    if (result < 0) {
-        return result;
-    }
-    const uint8_t *p = payload;
-    if (take_text(&p, out->model, sizeof out->model, CTRLBUS_MODEL_LEN) < 0) {
-        return CTRLBUS_ERR_FORMAT;
-    }
-    out->firmware_version = codec_take_u16(&p);
-    out->hardware_version = codec_take_u16(&p);
-    for (size_t i = 0; i < CTRLBUS_SERIAL_WORDS; i++) {
-        out->serial[i] = codec_take_u32(&p);
-    }
-    out->has_firmware_version_suffix = with_suffix;
-    memset(out->firmware_version_suffix, 0, sizeof out->firmware_version_suffix);
-    if (with_suffix) {
-        return take_text(&p, out->firmware_version_suffix, sizeof out->firmware_version_suffix,
-                         CTRLBUS_FIRMWARE_VERSION_SUFFIX_LEN);
-    }
-    return CTRLBUS_OK;
-}
+/* BEGIN GENERATED decoders (make generate: from protocol/ctrlbus.json) */
+enum {
+    DECODING_CONNECT_BASE,
+    DECODING_GET_BASE_CONF,
+    DECODING_GET_BASE_CONF_ADV,
+    DECODING_GET_BASE_STATUS,
+    DECODING_GET_BASE_MOTOR_DATA,
+    DECODING_GET_BASE_SENSOR_DATA,
+    DECODING_GET_BASE_BUMPER_DATA,
+    DECODING_GET_CHARGER_DATA,
+    DECODING_SET_V_AND_GET_DEADRECKON,
+    DECODING_HEALTH_GET_HEALTH,
+    DECODING_HEALTH_GET_ERROR
+};
 
-int32_t ctrlbus_get_base_conf_answer_decode(ctrlbus_get_base_conf_answer_t *out,
-                                            const uint8_t *payload, size_t len)
-{
-    int32_t result = check_decode(out, payload, len, CTRLBUS_GET_BASE_CONF_ANSWER_SIZE);
-    if (result < 0) {
-        return result;
-    }
-    const uint8_t *p = payload;
-    out->base_type = codec_take_u8(&p);
-    out->base_radius_mm_q8 = codec_take_u32(&p);
-    out->motor_type = codec_take_u8(&p);
-    out->sensor_num = codec_take_u8(&p);
-    for (size_t i = 0; i < CTRLBUS_CONF_SLOTS; i++) {
-        take_position(&p, &out->sensors[i]);
-    }
-    out->bumper_num = codec_take_u8(&p);
-    for (size_t i = 0; i < CTRLBUS_CONF_SLOTS; i++) {
-        take_position(&p, &out->bumpers[i]);
-    }
-    if (out->sensor_num > CTRLBUS_CONF_SLOTS || out->bumper_num > CTRLBUS_CONF_SLOTS) {
-        return CTRLBUS_ERR_FORMAT;
-    }
-    return CTRLBUS_OK;
-}
+/* Every offset of a decoding fits its byte (NONE, 0xFF, is none). */
+typedef char decoding_offsets_fit_a_byte
+    [offsetof(ctrlbus_connect_base_answer_t, has_firmware_version_suffix) < NONE &&
+             offsetof(ctrlbus_get_base_conf_answer_t, sensor_num) < NONE &&
+             offsetof(ctrlbus_get_base_conf_answer_t, bumper_num) < NONE &&
+             offsetof(ctrlbus_get_base_conf_adv_answer_t, blob) < NONE &&
+             offsetof(ctrlbus_get_base_conf_adv_answer_t, blob_len) == offsetof(ctrlbus_get_base_conf_adv_answer_t, blob) + sizeof(const uint8_t *) &&
+             offsetof(ctrlbus_get_base_bumper_data_answer_t, payload_size) < NONE &&
+             offsetof(ctrlbus_get_charger_data_answer_t, probes) < NONE &&
+             offsetof(ctrlbus_set_v_and_get_deadreckon_answer_t, has_timestamp_ms) < NONE &&
+             offsetof(ctrlbus_health_get_error_answer_t, message) + CTRLBUS_HEALTH_MESSAGE_LEN - 1u < NONE ? 1 : -1];
 
-int32_t ctrlbus_get_base_conf_adv_answer_decode(ctrlbus_get_base_conf_adv_answer_t *out,
-                                                const uint8_t *payload, size_t len)
-{
-    int32_t result = check_decode(out, payload, len, len);
-    if (result < 0) {
-        return result;
-    }
-    out->blob = payload;
-    out->blob_len = len;
-    return CTRLBUS_OK;
-}
+static const ctrlbus_codec_decoding_t DECODINGS[] = {
+    [DECODING_CONNECT_BASE] =
+        {
+            .layout = ctrlbus_codec_connect_base_layout,
+            .out_size = sizeof(ctrlbus_connect_base_answer_t),
+            .short_size = CTRLBUS_CONNECT_BASE_ANSWER_SIZE,
+            .long_size = CTRLBUS_CONNECT_BASE_ANSWER_SIZE_WITH_SUFFIX,
+            .sizing = DECODE_EXACT,
+            .length_at = offsetof(ctrlbus_connect_base_answer_t, has_firmware_version_suffix),
+            .rest_at = NONE,
+            .limit_max = 0u,
+            .limit_at = {NONE, NONE},
+        },
+    [DECODING_GET_BASE_CONF] =
+        {
+            .layout = ctrlbus_codec_get_base_conf_layout,
+            .out_size = sizeof(ctrlbus_get_base_conf_answer_t),
+            .short_size = CTRLBUS_GET_BASE_CONF_ANSWER_SIZE,
+            .long_size = CTRLBUS_GET_BASE_CONF_ANSWER_SIZE,
+            .sizing = DECODE_EXACT,
+            .length_at = NONE,
+            .rest_at = NONE,
+            .limit_max = 8u,
+            .limit_at = {offsetof(ctrlbus_get_base_conf_answer_t, sensor_num),
+                         offsetof(ctrlbus_get_base_conf_answer_t, bumper_num)},
+        },
+    [DECODING_GET_BASE_CONF_ADV] =
+        {
+            .layout = ctrlbus_codec_get_base_conf_adv_layout,
+            .out_size = sizeof(ctrlbus_get_base_conf_adv_answer_t),
+            .short_size = 0u,
+            .long_size = 0u,
+            .sizing = DECODE_ANY,
+            .length_at = NONE,
+            .rest_at = offsetof(ctrlbus_get_base_conf_adv_answer_t, blob),
+            .limit_max = 0u,
+            .limit_at = {NONE, NONE},
+        },
+    [DECODING_GET_BASE_STATUS] =
+        {
+            .layout = ctrlbus_codec_get_base_status_layout,
+            .out_size = sizeof(ctrlbus_get_base_status_answer_t),
+            .short_size = CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE,
+            .long_size = CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE,
+            .sizing = DECODE_EXACT,
+            .length_at = NONE,
+            .rest_at = NONE,
+            .limit_max = 0u,
+            .limit_at = {NONE, NONE},
+        },
+    [DECODING_GET_BASE_MOTOR_DATA] =
+        {
+            .layout = ctrlbus_codec_get_base_motor_data_layout,
+            .out_size = sizeof(ctrlbus_get_base_motor_data_answer_t),
+            .short_size = CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE,
+            .long_size = CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE,
+            .sizing = DECODE_EXACT,
+            .length_at = NONE,
+            .rest_at = NONE,
+            .limit_max = 0u,
+            .limit_at = {NONE, NONE},
+        },
+    [DECODING_GET_BASE_SENSOR_DATA] =
+        {
+            .layout = ctrlbus_codec_get_base_sensor_data_layout,
+            .out_size = sizeof(ctrlbus_get_base_sensor_data_answer_t),
+            .short_size = CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE,
+            .long_size = CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE,
+            .sizing = DECODE_EXACT,
+            .length_at = NONE,
+            .rest_at = NONE,
+            .limit_max = 0u,
+            .limit_at = {NONE, NONE},
+        },
+    [DECODING_GET_BASE_BUMPER_DATA] =
+        {
+            .layout = ctrlbus_codec_get_base_bumper_data_layout,
+            .out_size = sizeof(ctrlbus_get_base_bumper_data_answer_t),
+            .short_size = 1u,
+            .long_size = CTRLBUS_GET_BASE_BUMPER_DATA_ANSWER_SIZE,
+            .sizing = DECODE_UP_TO,
+            .length_at = offsetof(ctrlbus_get_base_bumper_data_answer_t, payload_size),
+            .rest_at = NONE,
+            .limit_max = 0u,
+            .limit_at = {NONE, NONE},
+        },
+    [DECODING_GET_CHARGER_DATA] =
+        {
+            .layout = ctrlbus_codec_get_charger_data_layout,
+            .out_size = sizeof(ctrlbus_get_charger_data_answer_t),
+            .short_size = CTRLBUS_GET_CHARGER_DATA_ANSWER_MIN,
+            .long_size = CTRLBUS_GET_CHARGER_DATA_ANSWER_MIN,
+            .sizing = DECODE_COUNTED,
+            .length_at = NONE,
+            .rest_at = offsetof(ctrlbus_get_charger_data_answer_t, probes),
+            .limit_max = 0u,
+            .limit_at = {NONE, NONE},
+        },
+    [DECODING_SET_V_AND_GET_DEADRECKON] =
+        {
+            .layout = ctrlbus_codec_set_v_and_get_deadreckon_layout,
+            .out_size = sizeof(ctrlbus_set_v_and_get_deadreckon_answer_t),
+            .short_size = CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE,
+            .long_size = CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_WITH_TIMESTAMP,
+            .sizing = DECODE_EXACT,
+            .length_at = offsetof(ctrlbus_set_v_and_get_deadreckon_answer_t, has_timestamp_ms),
+            .rest_at = NONE,
+            .limit_max = 0u,
+            .limit_at = {NONE, NONE},
+        },
+    [DECODING_HEALTH_GET_HEALTH] =
+        {
+            .layout = ctrlbus_codec_health_get_health_layout,
+            .out_size = sizeof(ctrlbus_health_get_health_answer_t),
+            .short_size = CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE,
+            .long_size = CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE,
+            .sizing = DECODE_EXACT,
+            .length_at = NONE,
+            .rest_at = NONE,
+            .limit_max = 0u,
+            .limit_at = {NONE, NONE},
+        },
+    [DECODING_HEALTH_GET_ERROR] =
+        {
+            .layout = ctrlbus_codec_health_get_error_layout,
+            .out_size = sizeof(ctrlbus_health_get_error_answer_t),
+            .short_size = CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE,
+            .long_size = CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE,
+            .sizing = DECODE_EXACT,
+            .length_at = NONE,
+            .rest_at = NONE,
+            .limit_max = 0u,
+            .limit_at = {offsetof(ctrlbus_health_get_error_answer_t, message) + CTRLBUS_HEALTH_MESSAGE_LEN - 1u,
+                         NONE},
+        },
+};
 
-int32_t ctrlbus_get_base_status_answer_decode(ctrlbus_get_base_status_answer_t *out,
-                                              const uint8_t *payload, size_t len)
-{
-    int32_t result = check_decode(out, payload, len, CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE);
-    if (result < 0) {
-        return result;
-    }
-    const uint8_t *p = payload;
-    out->battery_percent = codec_take_u8(&p);
-    out->power_status = codec_take_u8(&p);
-    return CTRLBUS_OK;
-}
+ANSWER_DECODER(connect_base, DECODING_CONNECT_BASE)
+ANSWER_DECODER(get_base_conf, DECODING_GET_BASE_CONF)
+ANSWER_DECODER(get_base_conf_adv, DECODING_GET_BASE_CONF_ADV)
+ANSWER_DECODER(get_base_status, DECODING_GET_BASE_STATUS)
+ANSWER_DECODER(get_base_motor_data, DECODING_GET_BASE_MOTOR_DATA)
+ANSWER_DECODER(get_base_sensor_data, DECODING_GET_BASE_SENSOR_DATA)
+ANSWER_DECODER(get_base_bumper_data, DECODING_GET_BASE_BUMPER_DATA)
+ANSWER_DECODER(get_charger_data, DECODING_GET_CHARGER_DATA)
+ANSWER_DECODER(set_v_and_get_deadreckon, DECODING_SET_V_AND_GET_DEADRECKON)
+ANSWER_DECODER(health_get_health, DECODING_HEALTH_GET_HEALTH)
+ANSWER_DECODER(health_get_error, DECODING_HEALTH_GET_ERROR)
+/* END GENERATED decoders */
 
-int32_t ctrlbus_get_base_motor_data_answer_decode(ctrlbus_get_base_motor_data_answer_t *out,
-                                                  const uint8_t *payload, size_t len)
-{
-    int32_t result = check_decode(out, payload, len, CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE);
-    if (result < 0) {
-        return result;
-    }
-    const uint8_t *p = payload;
-    out->left_distance_mm = codec_take_s32(&p);
-    out->right_distance_mm = codec_take_s32(&p);
-    out->status = codec_take_u8(&p);
-    return CTRLBUS_OK;
-}
-
-int32_t ctrlbus_get_base_sensor_data_answer_decode(ctrlbus_get_base_sensor_data_answer_t *out,
-                                                   const uint8_t *payload, size_t len)
-{
-    int32_t result = check_decode(out, payload, len, CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE);
-    if (result < 0) {
-        return result;
-    }
-    const uint8_t *p = payload;
-    for (size_t i = 0; i < CTRLBUS_SENSOR_CHANNELS; i++) {
-        out->distances_mm_q16[i] = codec_take_u32(&p);
-    }
-    return CTRLBUS_OK;
-}
-
-int32_t ctrlbus_get_base_bumper_data_answer_decode(ctrlbus_get_base_bumper_data_answer_t *out,
-                                                   const uint8_t *payload, size_t len)
-{
-    bool size_ok = len >= 1 && len <= CTRLBUS_GET_BASE_BUMPER_DATA_ANSWER_SIZE;
-    int32_t result = check_decode(out, payload, len, size_ok ? len : 0);
-    if (result < 0 || !size_ok) {
-        return result < 0 ? result : CTRLBUS_ERR_FORMAT;
-    }
-    out->bitmap = 0;
-    for (size_t i = 0; i < len; i++) {
-        out->bitmap |= (uint32_t)payload[i] << (8u * i);
-    }
-    out->payload_size = (uint8_t)len;
-    return CTRLBUS_OK;
-}
-
-int32_t ctrlbus_get_charger_data_answer_decode(ctrlbus_get_charger_data_answer_t *out,
-                                               const uint8_t *payload, size_t len)
-{
-    int32_t result = check_decode(out, payload, len, len); /* pointers only */
-    if (result < 0) {
-        return result;
-    }
-    size_t expected = len >= CTRLBUS_GET_CHARGER_DATA_ANSWER_MIN
-                          ? CTRLBUS_GET_CHARGER_DATA_ANSWER_MIN + payload[1]
-                          : CTRLBUS_GET_CHARGER_DATA_ANSWER_MIN;
-    result = check_decode(out, payload, len, expected);
-    if (result < 0) {
-        return result;
-    }
-    out->beacon_count = payload[0];
-    out->probe_count = payload[1];
-    out->probes = payload + CTRLBUS_GET_CHARGER_DATA_ANSWER_MIN;
-    return CTRLBUS_OK;
-}
-
-int32_t ctrlbus_set_v_and_get_deadreckon_answer_decode(
-    ctrlbus_set_v_and_get_deadreckon_answer_t *out, const uint8_t *payload, size_t len)
-{
-    bool with_timestamp = len == CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_WITH_TIMESTAMP;
-    int32_t result =
-        check_decode(out, payload, len,
-                     with_timestamp ? CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_WITH_TIMESTAMP
-                                    : CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE);
-    if (result < 0) {
-        return result;
-    }
-    const uint8_t *p = payload;
-    out->dx_mm_q16 = codec_take_s32(&p);
-    out->dy_mm_q16 = codec_take_s32(&p);
-    out->dtheta_deg_q16 = codec_take_s32(&p);
-    out->status = codec_take_u8(&p);
-    out->has_timestamp_ms = with_timestamp;
-    out->timestamp_ms = with_timestamp ? codec_take_u32(&p) : 0;
-    return CTRLBUS_OK;
-}
-
+/* POLL_BASE_CMD: three forms (messages.h), no layout. */
 int32_t ctrlbus_poll_base_cmd_answer_decode(ctrlbus_poll_base_cmd_answer_t *out,
                                             const uint8_t *payload, size_t len)
 {
@@ -371,30 +478,6 @@ int32_t ctrlbus_poll_base_cmd_answer_decode(ctrlbus_poll_base_cmd_answer_t *out,
     out->command = out->has_command ? payload[0] : 0;
     out->pad = len > 0 ? payload[1] : 0;
     return CTRLBUS_OK;
-}
-
-int32_t ctrlbus_health_get_health_answer_decode(ctrlbus_health_get_health_answer_t *out,
-                                                const uint8_t *payload, size_t len)
-{
-    int32_t result = check_decode(out, payload, len, CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE);
-    if (result < 0) {
-        return result;
-    }
-    out->flags = payload[0];
-    out->error_count = payload[1];
-    return CTRLBUS_OK;
-}
-
-int32_t ctrlbus_health_get_error_answer_decode(ctrlbus_health_get_error_answer_t *out,
-                                               const uint8_t *payload, size_t len)
-{
-    int32_t result = check_decode(out, payload, len, CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE);
-    if (result < 0) {
-        return result;
-    }
-    const uint8_t *p = payload;
-    out->error_code = codec_take_u32(&p);
-    return take_text(&p, out->message, sizeof out->message, CTRLBUS_HEALTH_MESSAGE_LEN);
 }
 
 /* ---- answers: the tagged union -------------------------------------------------------------- */

@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "answer_fields.h"
 #include "harness.h"
 
 static msg_field_t *add(msg_fields_t *out, vec_value_type_t type, const char *format, ...)
@@ -92,79 +93,47 @@ void msg_fields_of_request(msg_fields_t *out, const ctrlbus_request_t *r)
     }
 }
 
+/* One described answer field (answer_fields.h, generated from protocol/ctrlbus.json) as leaves. */
+static void add_described(msg_fields_t *out, const uint8_t *answer, const answer_field_t *f)
+{
+    const uint8_t *at = answer + f->offset;
+    if (f->has_at != ANSWER_FIELD_NONE && !*(const bool *)(const void *)(answer + f->has_at)) {
+        add_null(out, f->name);
+        return;
+    }
+    size_t count = f->count == 0u ? 1u : f->count;
+    switch (f->kind) {
+    case AF_TEXT: add_text(out, f->name, (const char *)at); return;
+    case AF_BYTES: {
+        const uint8_t *bytes = *(const uint8_t *const *)(const void *)at;
+        if (f->count_at != ANSWER_FIELD_NONE) { /* counted bytes are a list of integers */
+            for (size_t i = 0; i < answer[f->count_at]; i++) {
+                add_int_at(out, f->name, i, bytes[i]);
+            }
+        } else {
+            add_bytes(out, f->name, bytes, *(const size_t *)(const void *)(answer + f->len_at));
+        }
+        return;
+    }
+    case AF_POSITIONS: add_positions(out, f->name, (const ctrlbus_position_t *)(const void *)at); return;
+    default: break;
+    }
+    for (size_t i = 0; i < count; i++) {
+        long long value = f->kind == AF_U8    ? (long long)at[i]
+                          : f->kind == AF_U16 ? (long long)((const uint16_t *)(const void *)at)[i]
+                          : f->kind == AF_U32 ? (long long)((const uint32_t *)(const void *)at)[i]
+                                              : (long long)((const int32_t *)(const void *)at)[i];
+        if (f->count == 0u) {
+            add_int(out, f->name, value);
+        } else {
+            add_int_at(out, f->name, i, value);
+        }
+    }
+}
+
 static void ok_fields(msg_fields_t *out, const ctrlbus_answer_t *a)
 {
-    switch (a->to) {
-    case CTRLBUS_REQ_CONNECT_BASE: {
-        const ctrlbus_connect_base_answer_t *m = &a->as.connect_base;
-        add_text(out, "model", m->model);
-        add_int(out, "firmware_version", m->firmware_version);
-        add_int(out, "hardware_version", m->hardware_version);
-        for (size_t i = 0; i < CTRLBUS_SERIAL_WORDS; i++) {
-            add_int_at(out, "serial", i, m->serial[i]);
-        }
-        if (m->has_firmware_version_suffix) {
-            add_text(out, "firmware_version_suffix", m->firmware_version_suffix);
-        } else {
-            add_null(out, "firmware_version_suffix");
-        }
-        break;
-    }
-    case CTRLBUS_REQ_GET_BASE_CONF: {
-        const ctrlbus_get_base_conf_answer_t *m = &a->as.get_base_conf;
-        add_int(out, "base_type", m->base_type);
-        add_int(out, "base_radius_mm_q8", m->base_radius_mm_q8);
-        add_int(out, "motor_type", m->motor_type);
-        add_int(out, "sensor_num", m->sensor_num);
-        add_positions(out, "sensors", m->sensors);
-        add_int(out, "bumper_num", m->bumper_num);
-        add_positions(out, "bumpers", m->bumpers);
-        break;
-    }
-    case CTRLBUS_REQ_GET_BASE_CONF_ADV:
-        add_bytes(out, "blob", a->as.get_base_conf_adv.blob, a->as.get_base_conf_adv.blob_len);
-        break;
-    case CTRLBUS_REQ_GET_BASE_STATUS:
-        add_int(out, "battery_percent", a->as.get_base_status.battery_percent);
-        add_int(out, "power_status", a->as.get_base_status.power_status);
-        break;
-    case CTRLBUS_REQ_GET_BASE_MOTOR_DATA:
-        add_int(out, "left_distance_mm", a->as.get_base_motor_data.left_distance_mm);
-        add_int(out, "right_distance_mm", a->as.get_base_motor_data.right_distance_mm);
-        add_int(out, "status", a->as.get_base_motor_data.status);
-        break;
-    case CTRLBUS_REQ_GET_BASE_SENSOR_DATA:
-        for (size_t i = 0; i < CTRLBUS_SENSOR_CHANNELS; i++) {
-            add_int_at(out, "distances_mm_q16", i, a->as.get_base_sensor_data.distances_mm_q16[i]);
-        }
-        break;
-    case CTRLBUS_REQ_GET_BASE_BUMPER_DATA:
-        add_int(out, "bitmap", a->as.get_base_bumper_data.bitmap);
-        add_int(out, "payload_size", a->as.get_base_bumper_data.payload_size);
-        break;
-    case CTRLBUS_REQ_GET_CHARGER_DATA: {
-        const ctrlbus_get_charger_data_answer_t *m = &a->as.get_charger_data;
-        add_int(out, "beacon_count", m->beacon_count);
-        add_int(out, "probe_count", m->probe_count);
-        for (size_t i = 0; i < m->probe_count; i++) {
-            add_int_at(out, "probes", i, m->probes[i]);
-        }
-        break;
-    }
-    case CTRLBUS_REQ_SET_V_AND_GET_DEADRECKON: {
-        const ctrlbus_set_v_and_get_deadreckon_answer_t *m = &a->as.set_v_and_get_deadreckon;
-        add_int(out, "dx_mm_q16", m->dx_mm_q16);
-        add_int(out, "dy_mm_q16", m->dy_mm_q16);
-        add_int(out, "dtheta_deg_q16", m->dtheta_deg_q16);
-        add_int(out, "status", m->status);
-        if (m->has_timestamp_ms) {
-            add_int(out, "timestamp_ms", m->timestamp_ms);
-        } else {
-            add_null(out, "timestamp_ms");
-        }
-        break;
-    }
-    case CTRLBUS_REQ_POLL_BASE_CMD: {
+    if (a->to == CTRLBUS_REQ_POLL_BASE_CMD) { /* three forms, no layout */
         const ctrlbus_poll_base_cmd_answer_t *m = &a->as.poll_base_cmd;
         if (m->has_command) {
             add_int(out, "command", m->command);
@@ -173,17 +142,14 @@ static void ok_fields(msg_fields_t *out, const ctrlbus_answer_t *a)
         }
         add_int(out, "payload_size", m->payload_size);
         add_int(out, "pad", m->pad);
-        break;
+        return;
     }
-    case CTRLBUS_REQ_HEALTH_GET_HEALTH:
-        add_int(out, "flags", a->as.health_get_health.flags);
-        add_int(out, "error_count", a->as.health_get_health.error_count);
-        break;
-    case CTRLBUS_REQ_HEALTH_GET_ERROR:
-        add_int(out, "error_code", a->as.health_get_error.error_code);
-        add_text(out, "message", a->as.health_get_error.message);
-        break;
-    default: break; /* empty OK answers */
+    for (size_t k = 0; k < sizeof ANSWER_FIELDS / sizeof ANSWER_FIELDS[0]; k++) {
+        if (ANSWER_FIELDS[k].to == a->to) {
+            for (size_t i = 0; i < ANSWER_FIELDS[k].count; i++) {
+                add_described(out, (const uint8_t *)&a->as, &ANSWER_FIELDS[k].fields[i]);
+            }
+        }
     }
 }
 

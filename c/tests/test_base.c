@@ -1621,6 +1621,34 @@ static void test_ring_overflow_drops_and_counts(void)
     expect_nothing_more();
 }
 
+/* A receive interrupt's byte at a time: the same ring, the same count of dropped bytes. */
+static void test_feed_byte_fills_the_ring_and_counts_drops(void)
+{
+    setup();
+    static uint8_t small_ring[8];
+    config.rx_ring = small_ring;
+    config.rx_ring_size = sizeof small_ring;
+    start();
+    static const uint8_t request[] = {0x10, 0x02, 0xF8, 0x30, 0xDA};
+    for (size_t i = 0; i < sizeof request; i++) {
+        CHECK(ctrlbus_base_feed_byte(&base, request[i]));
+    }
+    ctrlbus_base_poll(&base, now);
+    expect_ok(2);
+    for (int i = 0; i < 7; i++) {
+        CHECK(ctrlbus_base_feed_byte(&base, 0x00)); /* the ring holds size - 1 */
+    }
+    CHECK(!ctrlbus_base_feed_byte(&base, 0x00));
+    CHECK(!ctrlbus_base_feed_byte(&base, 0x00));
+    ctrlbus_base_counters_t counters;
+    ctrlbus_base_counters(&base, &counters);
+    CHECK_EQ(counters.rx_dropped, 2);
+    CHECK(!ctrlbus_base_feed_byte(NULL, 0x10));
+    ctrlbus_base_poll(&base, now);
+    expect_error(CTRLBUS_WIRE_ERR_NOT_SYNCHRONISED);
+    expect_nothing_more();
+}
+
 /* The stream an "interrupt" plays into the base: requests of every shape, answers predictable. */
 #define STREAM_REQUESTS 3000
 static uint8_t stream[STREAM_REQUESTS * 40];
@@ -1919,6 +1947,7 @@ int main(void)
     RUN(test_bytes_fed_while_rebooting_are_heard);
     RUN(test_compiled_out_features_answer_and_fail_clearly);
     RUN(test_ring_overflow_drops_and_counts);
+    RUN(test_feed_byte_fills_the_ring_and_counts_drops);
     RUN(test_interrupt_feeding_inside_the_poll_loses_nothing);
     RUN(test_thread_feeding_while_polling_loses_nothing);
     RUN(test_invalid_json_base_answers);

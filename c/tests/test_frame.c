@@ -653,7 +653,7 @@ static void test_push_takes_a_frame_byte_by_byte(void)
     CHECK(!ctrlbus_decoder_busy(&f.decoder));
     CHECK_EQ(f.stats.frames, 1);
 
-    /* A long frame, each byte at a new millisecond (push_slow() instead of the inline path). */
+    /* A long frame, each byte at a new millisecond (none takes push's same-millisecond path). */
     rx_log_clear(&log_a);
     static const char *const bytes[] = {"50", "03", "00", "02", "11", "22", "62"};
     for (uint32_t i = 0; i < sizeof bytes / sizeof bytes[0]; i++) {
@@ -665,11 +665,10 @@ static void test_push_takes_a_frame_byte_by_byte(void)
     CHECK_EQ(ctrlbus_decoder_push(NULL, 0x10, 0, &frame), CTRLBUS_RX_NONE);
 }
 
-static void test_push_inline_cases_match_feed(void)
+static void test_push_own_cases_match_feed(void)
 {
-    /* The cases frame.h's inline push settles itself (flags, length bytes, a frame's last byte,
-     * garbage after its gap's event) next to those it must leave to push_slow(): garbage before
-     * the event, LEN 0 (standard and long), a checksum error at the last byte, oversize lengths of
+    /* The bytes push settles itself (flags, length bytes, a frame's last byte) next to those it
+     * leaves to the scan: garbage before and after its gap's event, LEN 0 (standard and long), a checksum error at the last byte, oversize lengths of
      * both kinds in a 32-byte buffer. run_all_splits() compares results and counters with feed. */
     static const char *const stream =
         "10 03 01 AA 55 ED 33 44 40 99 50 04 00 02 01 02 03 56 10 00 10 10 02 03 07 16 50 00 00 50 "
@@ -706,9 +705,7 @@ static void test_take_hands_out_frames_in_place(void)
     CHECK_EQ(ctrlbus_decoder_take(&f.decoder, &at, &left, 5, &frame), CTRLBUS_RX_FRAME);
     CHECK(frame.cmd == 0x01 && frame.payload_len == 2);
     CHECK(frame.payload[0] == 0xAA && frame.payload[1] == 0x55);
-#if !defined(CTRLBUS_DECODER_FAST) || CTRLBUS_DECODER_FAST != 0
-    CHECK(frame.payload == first + 4); /* in place (a build without the bulk path copies it) */
-#endif
+    CHECK(frame.payload == first + 4); /* in place: not copied */
     CHECK(at == first + 7 && left == 2);
     CHECK_EQ(ctrlbus_decoder_take(&f.decoder, &at, &left, 5, &frame), CTRLBUS_RX_NONE);
     CHECK(left == 0 && ctrlbus_decoder_busy(&f.decoder));
@@ -1186,7 +1183,7 @@ int main(void)
     RUN(test_timeout_is_applied_before_new_bytes);
     RUN(test_timeout_across_clock_wraparound);
     RUN(test_push_takes_a_frame_byte_by_byte);
-    RUN(test_push_inline_cases_match_feed);
+    RUN(test_push_own_cases_match_feed);
     RUN(test_take_hands_out_frames_in_place);
     RUN(test_push_applies_the_timeout_before_the_byte);
     RUN(test_push_refuses_a_byte_while_results_wait);

@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "ctrlbus/messages.h"
+#include "answer_fields.h"
 #include "harness.h"
 #include "msg_fields.h"
 
@@ -623,25 +624,6 @@ static void test_unknown_requests_are_unsupported(void)
 }
 
 /* Which OK payload lengths each answer layout accepts. */
-static bool length_allowed(ctrlbus_req_kind_t to, size_t len)
-{
-    switch (to) {
-    case CTRLBUS_REQ_CONNECT_BASE: return len == 28 || len == 39;
-    case CTRLBUS_REQ_GET_BASE_CONF: return len == 264;
-    case CTRLBUS_REQ_GET_BASE_CONF_ADV: return true;
-    case CTRLBUS_REQ_GET_BASE_STATUS: return len == 2;
-    case CTRLBUS_REQ_GET_BASE_MOTOR_DATA: return len == 9;
-    case CTRLBUS_REQ_GET_BASE_SENSOR_DATA: return len == 64;
-    case CTRLBUS_REQ_GET_BASE_BUMPER_DATA: return len >= 1 && len <= 4;
-    case CTRLBUS_REQ_GET_CHARGER_DATA: return len == 5; /* probe_count is 3 below */
-    case CTRLBUS_REQ_SET_V_AND_GET_DEADRECKON: return len == 13 || len == 17;
-    case CTRLBUS_REQ_POLL_BASE_CMD: return len == 0 || len == 2;
-    case CTRLBUS_REQ_HEALTH_GET_HEALTH: return len == 2;
-    case CTRLBUS_REQ_HEALTH_GET_ERROR: return len == 36;
-    default: return len == 0; /* the empty OK answers */
-    }
-}
-
 static void test_answer_lengths(void)
 {
     static uint8_t payload[300];
@@ -656,7 +638,7 @@ static void test_answer_lengths(void)
                             len);
             int32_t result =
                 ctrlbus_answer_decode(&d, (ctrlbus_req_kind_t)to, CTRLBUS_CMD_OK, payload, len);
-            CHECK_EQ(result, length_allowed((ctrlbus_req_kind_t)to, len) ? CTRLBUS_OK
+            CHECK_EQ(result, answer_length_allowed((ctrlbus_req_kind_t)to, len) ? CTRLBUS_OK
                                                                          : CTRLBUS_ERR_FORMAT);
         }
     }

@@ -233,18 +233,22 @@ def test_base_exchange_figures(smoke: tuple[Path, dict[str, dict[str, Any]]]) ->
     if result["status"] == "pending":
         return
     f = result["figures"]
-    assert f["exchanges"] > 0 and f["request_bytes"] == 17 and f["answer_bytes"] in (18, 22)
+    assert f["exchanges"] > 0 and f["set_v_request_bytes"] == 17 and f["set_v_answer_bytes"] in (18, 22)
+    assert f["status_request_bytes"] == 5 and f["status_answer_bytes"] == 7
     for level in ("O2", "Os"):
-        for mode in ("frames", "bytes", "polled"):
-            assert f[f"{level}_{mode}_instructions_per_exchange"] > 0
-            report = result["details"]["harness_reports"][level][mode]
-            assert report["exchanges"] == f["exchanges"]
-            assert report["answer_bytes"] == f["exchanges"] * f["answer_bytes"]
+        for kind in ("set_v", "status"):
+            ours = f[f"{level}_{kind}_ours_per_exchange"]
+            floor = f[f"{level}_{kind}_floor_per_exchange"]
+            assert ours > 0 and floor > 0 and f[f"{level}_{kind}_mavlink_parse_per_message"] > 0
+            assert f[f"{level}_{kind}_ours_over_floor"] == pytest.approx(ours / floor, abs=0.01)
+        assert 0 < f[f"{level}_mcu_load_percent"] < 100
+        assert result["details"]["profile_per_exchange"][level]
     # Streamed: several write calls per answer, none holding the whole answer.
-    assert f["write_calls_per_answer"] > 1 and 0 < f["largest_write_bytes"] < f["answer_bytes"]
+    assert f["write_calls_per_answer"] > 1 and 0 < f["largest_write_bytes"] < f["set_v_answer_bytes"]
     assert "valgrind --tool=callgrind" in "\n".join(result["tool_commands"])
-    assert result["details"]["profile_per_exchange"]["O2"]["frames"]
-    assert result["details"]["profile_per_exchange"]["Os"]["frames"]
+    # The table judges the SET_V exchange against its goal at both levels.
+    judged = [row for row in result["table"] if row[1].startswith("≤ 1.5")]
+    assert len(judged) == 2
 
 
 def test_footprint_figures(smoke: tuple[Path, dict[str, dict[str, Any]]]) -> None:

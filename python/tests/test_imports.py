@@ -105,6 +105,7 @@ def test_links_do_not_know_the_fault_injector() -> None:
 LAYERS = {
     "errors": 1,
     "compat": 1,
+    "protocol_tables": 1,
     "frame": 2,
     "messages": 2,
     "constants": 2,

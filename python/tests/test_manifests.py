@@ -30,7 +30,6 @@ C_DIR = REPO / "c"
 LIBRARY_SOURCES = sorted(str(p) for p in (C_DIR / "src").rglob("*.c"))
 # Each Kconfig option CTRLBUS_<X> of zephyr/Kconfig sets the C macro CTRLBUS_CONFIG_<X>, except:
 KCONFIG_TO_MACRO = {
-    "CTRLBUS_DECODER_FAST": "CTRLBUS_DECODER_FAST",
     "CTRLBUS_CONFIG_HEADER": "CTRLBUS_CONFIG_HEADER",
 }
 
@@ -144,12 +143,10 @@ def ctrlbus_options(kconfig: Any) -> dict[str, str]:
 
 def library_switches() -> set[str]:
     """The library's build-time switches: the #ifndef-defaulted CTRLBUS_CONFIG_* macros (their
-    home is ctrlbus_config.h), CTRLBUS_DECODER_FAST, and the CTRLBUS_CONFIG_HEADER hook."""
+    home is ctrlbus_config.h) and the CTRLBUS_CONFIG_HEADER hook."""
     found = {"CTRLBUS_CONFIG_HEADER"}
     for path in [*C_DIR.glob("include/ctrlbus/*.h"), *C_DIR.rglob("src/*.[ch]")]:
-        found |= set(
-            re.findall(r"^#ifndef (CTRLBUS_(?:CONFIG_\w+|DECODER_FAST))\s*$", path.read_text(), re.M)
-        )
+        found |= set(re.findall(r"^#ifndef (CTRLBUS_CONFIG_\w+)\s*$", path.read_text(), re.M))
     return {s for s in found if not s.endswith("_H")}
 
 
@@ -169,14 +166,13 @@ def test_every_library_switch_has_a_kconfig_option(tmp_path: Path) -> None:
     }
     missing = library_switches() - mapped
     assert not missing, f"switches of the C library without a zephyr/Kconfig option: {sorted(missing)}"
-    assert "CTRLBUS_DECODER_FAST" in library_switches()  # the scan itself works
+    assert "CTRLBUS_CONFIG_HEALTH" in library_switches()  # the scan itself works
 
 
 def test_zephyr_build_with_the_defaults(tmp_path: Path) -> None:
     options = ctrlbus_options(zephyr_kconfig(tmp_path))
     assert options.pop("CTRLBUS_CONFIG_HEADER") == ""
-    assert options["CTRLBUS_DECODER_FAST"] == "1"  # the library's own default at -O2
-    assert {v for k, v in options.items() if k != "CTRLBUS_DECODER_FAST"} == {"y"}, options
+    assert set(options.values()) == {"y"}, options
     calls = run_with_stand_ins(
         tmp_path,
         REPO / "zephyr" / "CMakeLists.txt",
@@ -185,9 +181,9 @@ def test_zephyr_build_with_the_defaults(tmp_path: Path) -> None:
     assert calls["library"] == ["ctrlbus"]
     assert sorted(calls["source"]) == LIBRARY_SOURCES
     assert [Path(p).resolve() for p in calls["include"]] == [C_DIR / "include"]
-    switches = {n.replace("CTRLBUS_", "CTRLBUS_CONFIG_", 1) for n in options if n != "CTRLBUS_DECODER_FAST"}
+    switches = {n.replace("CTRLBUS_", "CTRLBUS_CONFIG_", 1) for n in options}
     assert set(calls["define"]) == {f"{s}=1" for s in switches}
-    assert calls["library_define"] == ["CTRLBUS_DECODER_FAST=1"]
+    assert not calls.get("library_define")  # one decoder: nothing chooses its inside
 
 
 def test_zephyr_options_turn_switches_off(tmp_path: Path) -> None:
@@ -195,27 +191,13 @@ def test_zephyr_options_turn_switches_off(tmp_path: Path) -> None:
         tmp_path, SIZE_OPTIMIZATIONS="y", CTRLBUS_HEALTH="n", CTRLBUS_CONFIG_HEADER="board_ctrlbus.h"
     )
     options = ctrlbus_options(kconfig)
-    assert options["CTRLBUS_DECODER_FAST"] == "2"  # size-optimised: the library's own -Os default
     variables = {f"CONFIG_{k}": v for k, v in options.items() if v != "n"}
     calls = run_with_stand_ins(
         tmp_path, REPO / "zephyr" / "CMakeLists.txt", {"CONFIG_CTRLBUS": "y", **variables}
     )
     assert "CTRLBUS_CONFIG_HEALTH=0" in calls["define"] and "CTRLBUS_CONFIG_LIMITS=1" in calls["define"]
     assert 'CTRLBUS_CONFIG_HEADER="board_ctrlbus.h"' in calls["define"]
-    assert calls["library_define"] == ["CTRLBUS_DECODER_FAST=2"]
-
-
-def test_zephyr_decoder_level_is_one_of_the_three(tmp_path: Path) -> None:
-    for level in ("0", "1", "2"):
-        options = ctrlbus_options(zephyr_kconfig(tmp_path, CTRLBUS_DECODER_FAST=level))
-        variables = {f"CONFIG_{k}": v for k, v in options.items() if v != "n"}
-        calls = run_with_stand_ins(
-            tmp_path, REPO / "zephyr" / "CMakeLists.txt", {"CONFIG_CTRLBUS": "y", **variables}
-        )
-        assert calls["library_define"] == [f"CTRLBUS_DECODER_FAST={level}"]
-    kconfig = zephyr_kconfig(tmp_path)
-    kconfig.syms["CTRLBUS_DECODER_FAST"].set_value("3")  # outside the range: not taken
-    assert ctrlbus_options(kconfig)["CTRLBUS_DECODER_FAST"] == "1"
+    assert not calls.get("library_define")
 
 
 def test_zephyr_builds_nothing_without_config_ctrlbus(tmp_path: Path) -> None:

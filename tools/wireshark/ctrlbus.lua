@@ -12,7 +12,8 @@
 -- Use:
 --   tshark -X lua_script:tools/wireshark/ctrlbus.lua -r capture.pcap -V
 --   wireshark -X lua_script:tools/wireshark/ctrlbus.lua capture.pcap
--- or copy the file into Wireshark's personal Lua plugins folder (Help > About > Folders).
+-- or copy it with ctrlbus_protocol.lua (its generated tables, loaded from this file's folder)
+-- into Wireshark's personal Lua plugins folder (Help > About > Folders).
 -- Preferences: ctrlbus.max_frame (default 65539) and ctrlbus.timeout_ms (default 0 = off), e.g.
 -- `-o ctrlbus.timeout_ms:20`. The timeout is checked, as StreamDecoder.feed does, when the next
 -- record of the same direction arrives.
@@ -40,6 +41,10 @@
 
 local P = Proto("ctrlbus", "SLAMWARE Control Bus")
 
+-- The protocol's tables (names, bit meanings, fields, layouts), generated from
+-- protocol/ctrlbus.json by `make generate` into ctrlbus_protocol.lua beside this file.
+local PROTOCOL = dofile((debug.getinfo(1, "S").source:match("^@(.*[/\\])") or "") .. "ctrlbus_protocol.lua")
+
 P.prefs.max_frame = Pref.uint("Largest frame (bytes)", 65539,
     "Candidates announcing a larger frame fail as oversize (header and checksum included)")
 P.prefs.timeout_ms = Pref.uint("Inter-byte timeout (ms, 0 = off)", 0,
@@ -50,19 +55,10 @@ P.prefs.timeout_ms = Pref.uint("Inter-byte timeout (ms, 0 = off)", 0,
 
 local DIRECTIONS = { [0] = "Core → base", [1] = "Base → Core" }
 local FLAG_NAMES = { [0x10] = "standard", [0x50] = "long" }
-local CMD_NAMES = {
-    [0x00] = "SYNC", [0x01] = "ECHO", [0x02] = "OK", [0x03] = "ERROR",
-    [0xF8] = "CTRL_BUS", [0xF9] = "BASE_CMD", [0xFF] = "INVALID",
-}
-local REQUEST_NAMES = {
-    [0x10] = "CONNECT_BASE", [0x20] = "GET_BASE_CONF", [0x21] = "GET_BASE_CONF_ADV",
-    [0x30] = "GET_BASE_STATUS", [0x31] = "GET_BASE_MOTOR_DATA", [0x32] = "GET_BASE_SENSOR_DATA",
-    [0x33] = "GET_BASE_BUMPER_DATA", [0x34] = "GET_CHARGER_DATA", [0x35] = "GET_AUXILIARY_ANCHOR",
-    [0x40] = "SET_BASE_MOTOR", [0x41] = "SET_V_AND_GET_DEADRECKON", [0x50] = "POLL_BASE_CMD",
-    [0x5F] = "POLL_BASE_ANS_CMD", [0x60] = "SEND_EVENT", [0x90] = "HEALTH_MGMT",
-}
-local HEALTH_NAMES = { [0x01] = "HEALTH_GET_HEALTH", [0x02] = "HEALTH_GET_ERROR", [0x03] = "HEALTH_CLR_ERROR" }
-local BASE_CMD_NAMES = { [0x01] = "ENTER_DFU", [0x02] = "REBOOT" }
+local CMD_NAMES = PROTOCOL.CMD_NAMES
+local REQUEST_NAMES = PROTOCOL.REQUEST_NAMES
+local HEALTH_NAMES = PROTOCOL.HEALTH_NAMES
+local BASE_CMD_NAMES = PROTOCOL.BASE_CMD_SUBCOMMANDS
 local ERROR_NAMES = {
     [0x0010] = "channel not synchronised", [0x0020] = "request too long",
     [0x0040] = "checksum mismatch", [0x00C0] = "checksum mismatch (reference form)",
@@ -71,21 +67,8 @@ local ERROR_NAMES = {
 -- ERROR codes that answer bytes on the line rather than a request.
 -- ERROR codes below this are the receiver's state bits (protocol.md §11.6), not an answer to a request.
 local LINE_FAULT_LIMIT = 0x0100
-local EVENT_NAMES = {
-    [0x61] = "LIDAR_CONN_FAIL", [0x62] = "LIDAR_RAMPUP_FAIL", [0x63] = "SYSTEM_UP_OK",
-    [0x64] = "FIRMWARE_UPDATE", [0x65] = "CORE_DISCONNECT", [0x66] = "FIRMWARE_UPDATE_OK",
-    [0x80] = "START_SWEEP", [0x81] = "END_SWEEP", [0x82] = "START_VACUUM", [0x83] = "END_VACUUM",
-}
-local COMMAND_NAMES = {
-    [0x51] = "GET_INFO", [0x52] = "RESET_WIFI", [0x53] = "FW_UPGRADING", [0x80] = "START_SWEEP",
-    [0x81] = "STOP_SWEEP", [0x82] = "SPOT_SWEEP", [0x90] = "GET_HEALTH", [0xA0] = "MOVE_FORWARD",
-    [0xA1] = "MOVE_BACKWARD", [0xA2] = "TURN_LEFT", [0xA3] = "TURN_RIGHT", [0xA4] = "GO_HOME",
-    [0xAF] = "CANCEL_ACTION", [0xB0] = "GET_AUXILIARY_ANCHOR",
-}
-local BASE_TYPES = { [0] = "circle", [1] = "square" }
-local MOTOR_TYPES = { [0] = "two-wheel differential" }
-local LEVELS = { [1] = "warning", [2] = "error", [4] = "fatal" }
-local COMPONENTS = { [0] = "user", [1] = "system", [2] = "power", [3] = "motion", [4] = "sensor" }
+local LEVELS = PROTOCOL.HEALTH_LEVELS
+local COMPONENTS = PROTOCOL.HEALTH_COMPONENTS
 
 -- Binary configuration (0x21) dictionary, reference §5 (python/src/ctrlbus/binconf.py has the same).
 local DICTIONARY = {
@@ -145,38 +128,13 @@ for _, name in ipairs(COUNTER_NAMES) do
     counter_fields[name] = ProtoField.uint32("ctrlbus.counters." .. name, name, base.DEC)
 end
 
--- The contract's message fields: name -> ProtoField type, display base, value names.
-local CONTRACT = {
-    { "filler", "bytes" }, { "data", "bytes" },
-    { "subcommand", "uint8", base.DEC_HEX, BASE_CMD_NAMES },
-    { "protocol_version", "uint8", base.DEC },
-    { "model", "string" }, { "firmware_version", "uint16", base.DEC_HEX },
-    { "hardware_version", "uint16", base.DEC_HEX }, { "serial", "uint32", base.DEC_HEX },
-    { "firmware_version_suffix", "string" },
-    { "base_type", "uint8", base.DEC, BASE_TYPES }, { "base_radius_mm_q8", "uint32", base.DEC },
-    { "motor_type", "uint8", base.DEC, MOTOR_TYPES }, { "sensor_num", "uint8", base.DEC },
-    { "sensors.x_mm_q8", "int32" }, { "sensors.y_mm_q8", "int32" }, { "sensors.z_mm_q8", "int32" },
-    { "sensors.angle_deg_q8", "uint32", base.DEC },
-    { "bumper_num", "uint8", base.DEC },
-    { "bumpers.x_mm_q8", "int32" }, { "bumpers.y_mm_q8", "int32" }, { "bumpers.z_mm_q8", "int32" },
-    { "bumpers.angle_deg_q8", "uint32", base.DEC },
-    { "blob", "bytes" },
-    { "battery_percent", "uint8", base.DEC }, { "power_status", "uint8", base.DEC_HEX },
-    { "left_distance_mm", "int32" }, { "right_distance_mm", "int32" }, { "status", "uint8", base.DEC_HEX },
-    { "distances_mm_q16", "uint32", base.DEC },
-    { "bitmap", "uint32", base.DEC_HEX }, { "payload_size", "uint8", base.DEC },
-    { "data_type", "uint8", base.DEC }, { "beacon_count", "uint8", base.DEC },
-    { "probe_count", "uint8", base.DEC }, { "probes", "uint8", base.DEC_HEX },
-    { "speeds_mm_s", "int32" },
-    { "vx_mps_q16", "int32" }, { "vy_mps_q16", "int32" }, { "omega_radps_q16", "int32" },
-    { "dx_mm_q16", "int32" }, { "dy_mm_q16", "int32" }, { "dtheta_deg_q16", "int32" },
-    { "timestamp_ms", "uint32", base.DEC },
-    { "command", "uint8", base.DEC_HEX, COMMAND_NAMES }, { "pad", "uint8", base.DEC_HEX },
-    { "event", "uint8", base.DEC_HEX, EVENT_NAMES },
-    { "flags", "uint8", base.DEC_HEX }, { "error_count", "uint8", base.DEC },
-    { "index", "uint8", base.DEC }, { "error_code", "uint32", base.DEC_HEX },
-    { "message", "string" },
-}
+-- The contract's message fields: name -> ProtoField type, display base, value names (the
+-- description's, and the SYNC / ECHO bytes).
+local CONTRACT = { { "filler", "bytes" }, { "data", "bytes" } }
+for _, spec in ipairs(PROTOCOL.FIELDS) do
+    local names = spec[4] and PROTOCOL[spec[4]]
+    CONTRACT[#CONTRACT + 1] = { spec[1], spec[2], spec[3] and base[spec[3]], names }
+end
 local cf = {}
 for _, spec in ipairs(CONTRACT) do
     local name, ftype, display, names = spec[1], spec[2], spec[3], spec[4]
@@ -191,14 +149,7 @@ for _, spec in ipairs(CONTRACT) do
 end
 
 -- Units of the numeric contract fields: fixed-point shift and unit (by the last name part).
-local UNITS = {
-    vx_mps_q16 = { 16, "m/s" }, vy_mps_q16 = { 16, "m/s" }, omega_radps_q16 = { 16, "rad/s" },
-    dx_mm_q16 = { 16, "mm" }, dy_mm_q16 = { 16, "mm" }, dtheta_deg_q16 = { 16, "°" },
-    base_radius_mm_q8 = { 8, "mm" }, x_mm_q8 = { 8, "mm" }, y_mm_q8 = { 8, "mm" }, z_mm_q8 = { 8, "mm" },
-    angle_deg_q8 = { 8, "°" }, distances_mm_q16 = { 16, "mm" },
-    left_distance_mm = { 0, "mm" }, right_distance_mm = { 0, "mm" }, speeds_mm_s = { 0, "mm/s" },
-    timestamp_ms = { 0, "ms" }, battery_percent = { 0, "%" },
-}
+local UNITS = PROTOCOL.UNITS
 
 local all_fields = {}
 for _, field in pairs(f) do all_fields[#all_fields + 1] = field end
@@ -625,22 +576,18 @@ reset_state()
 
 local PAIR_DEPTH = 4
 local PAIR_WINDOW_S = 1.0
--- OK payload sizes each request's answer may have (the table of ctrlbus.annotate.OK_SIZES).
-local OK_SIZES = {
-    CONNECT_BASE = { 28, 39 }, GET_BASE_CONF = { 264 }, GET_BASE_CONF_ADV = "blob",
-    GET_BASE_STATUS = { 2 }, GET_BASE_MOTOR_DATA = { 9 }, GET_BASE_SENSOR_DATA = { 64 },
-    GET_BASE_BUMPER_DATA = { 1, 2, 3, 4 }, GET_CHARGER_DATA = "charger",
-    SET_V_AND_GET_DEADRECKON = { 13, 17 }, POLL_BASE_CMD = { 0, 2 }, HEALTH_GET_HEALTH = { 2 },
-    HEALTH_GET_ERROR = { 36 }, SET_BASE_MOTOR = { 0 }, POLL_BASE_ANS_CMD = { 0 }, SEND_EVENT = { 0 },
-    HEALTH_CLR_ERROR = { 0 }, BASE_CMD = { 0 },
-}
+-- OK payload sizes each request's answer may have (ctrlbus_protocol.lua, as ctrlbus.annotate's).
+local OK_SIZES = PROTOCOL.OK_SIZES
 
 local function ok_size_fits(name, payload)
     local sizes = name and OK_SIZES[name]
     if not sizes then return true end
     local n = #payload
-    if sizes == "blob" then return true end
-    if sizes == "charger" then return n >= 2 and n == 2 + payload:byte(2) end
+    if sizes == "any" then return true end
+    if sizes == "counted" then
+        local head = PROTOCOL.OK_COUNTED_HEAD[name]
+        return n >= head and n == head + payload:byte(head)
+    end
     for _, size in ipairs(sizes) do
         if n == size then return true end
     end
@@ -843,79 +790,79 @@ local function add_binconf(tree, at, size)
     return nil
 end
 
+-- What the generic walker adds to a number: its bits, what a health code says, the probe's name.
+local PROBE_NAMES = { "left", "main", "right" }
+local function annotate(item, spec, value, index)
+    if spec.health_code then
+        item:append_text(" (" .. describe_error_code(value) .. ")")
+    elseif spec.bits == "charger_probe" then
+        item:append_text(string.format(" (%s probe sees: %s)", PROBE_NAMES[index + 1] or ("probe " .. index),
+            bits_text(value, PROTOCOL.BITS.charger_probe)))
+    elseif spec.bits and PROTOCOL.BITS[spec.bits] then
+        item:append_text(" (" .. bits_text(value, PROTOCOL.BITS[spec.bits]) .. ")")
+    elseif spec.bits then
+        item:append_text(" (active low: 0 = triggered)")
+    end
+end
+
+-- An OK answer laid out by the description (ctrlbus_protocol.lua ANSWERS): its size checked, then
+-- its fields in wire order; an optional tail field only when the payload holds it.
+local function answer_by_layout(layout)
+    return function(tree, at, n)
+        if layout.count_field then
+            if n < layout.min or n ~= layout.min + at(layout.min - 1, 1):uint() then
+                return "format", string.format("%d payload bytes, expected %d + %s", n, layout.min - 1,
+                    layout.count_field)
+            end
+        elseif layout.max then
+            if n < layout.min or n > layout.max then
+                return "format", string.format("%d payload bytes, expected %d to %d", n, layout.min, layout.max)
+            end
+        elseif layout.sizes then
+            local kind, text = need(n, (table.unpack or unpack)(layout.sizes))
+            if kind then return kind, text end
+        end
+        local offset = 0
+        for _, spec in ipairs(layout.fields) do
+            local name, kind, count = spec[1], spec[2], spec[3] or 1
+            if offset >= n and spec.optional then break end
+            if kind == "text" then
+                local problem = add_text(tree, name, at(offset, count), spec.nul_required)
+                if problem then return "format", problem end
+                offset = offset + count
+            elseif kind == "position" then
+                for index = 0, count - 1 do offset = add_position(tree, at, offset, name, index) end
+            elseif kind == "bytes" then
+                for index = 0, n - offset - 1 do
+                    local value, item = add_number(tree, name, at(offset + index, 1))
+                    annotate(item, spec, value, index)
+                end
+                offset = n
+            elseif spec.truncatable then -- the word's low bytes, as many as were sent
+                local size = math.min(SIZES[kind], n - offset)
+                local value = 0
+                for index = size - 1, 0, -1 do value = value * 256 + at(offset + index, 1):uint() end
+                local _, item = add_number(tree, name, at(offset, size), false, value)
+                annotate(item, spec, value)
+                offset = offset + size
+            else
+                for _ = 1, count do
+                    local value, item = add_number(tree, name, at(offset, SIZES[kind]), kind == "s32")
+                    annotate(item, spec, value)
+                    offset = offset + SIZES[kind]
+                end
+            end
+        end
+        if layout.size_field then add_number(tree, layout.size_field, at(0, n), false, n) end
+    end
+end
+
 local OK_FIELDS = {
-    CONNECT_BASE = function(tree, at, n)
-        local kind, text = need(n, 28, 39)
-        if kind then return kind, text end
-        local problem = add_text(tree, "model", at(0, 12))
-        local offset = add_layout(tree, at, 12, { { "firmware_version", "u16" }, { "hardware_version", "u16" },
-            { "serial", "u32", 3 } })
-        if n == 39 then problem = problem or add_text(tree, "firmware_version_suffix", at(offset, 11)) end
-        if problem then return "format", problem end
-    end,
-    GET_BASE_CONF = function(tree, at, n)
-        local kind, text = need(n, 264)
-        if kind then return kind, text end
-        local offset = add_layout(tree, at, 0, { { "base_type", "u8" }, { "base_radius_mm_q8", "u32" },
-            { "motor_type", "u8" }, { "sensor_num", "u8" } })
-        for index = 0, 7 do offset = add_position(tree, at, offset, "sensors", index) end
-        offset = add_layout(tree, at, offset, { { "bumper_num", "u8" } })
-        for index = 0, 7 do offset = add_position(tree, at, offset, "bumpers", index) end
-    end,
     GET_BASE_CONF_ADV = function(tree, at, n)
         if n == 0 then return "format", "an empty blob" end
         tree:add(cf.blob, at(0, n))
         local problem = add_binconf(tree, at, n)
         if problem then return "binconf", problem end
-    end,
-    GET_BASE_STATUS = function(tree, at, n)
-        local kind, text = need(n, 2)
-        if kind then return kind, text end
-        add_number(tree, "battery_percent", at(0, 1))
-        local value, item = add_number(tree, "power_status", at(1, 1))
-        item:append_text(" (" .. bits_text(value, { [0] = "charging", "DC connected", "on dock",
-            "dock detected", "dock contacted", "dock negotiating" }) .. ")")
-    end,
-    GET_BASE_MOTOR_DATA = function(tree, at, n)
-        local kind, text = need(n, 9)
-        if kind then return kind, text end
-        add_layout(tree, at, 0, { { "left_distance_mm", "s32" }, { "right_distance_mm", "s32" } })
-        local value, item = add_number(tree, "status", at(8, 1))
-        item:append_text(" (" .. bits_text(value, { [1] = "wheel stall", [2] = "traction lost" }) .. ")")
-    end,
-    GET_BASE_SENSOR_DATA = function(tree, at, n)
-        local kind, text = need(n, 64)
-        if kind then return kind, text end
-        add_layout(tree, at, 0, { { "distances_mm_q16", "u32", 16 } })
-    end,
-    GET_BASE_BUMPER_DATA = function(tree, at, n)
-        local kind, text = need(n, 1, 2, 3, 4)
-        if kind then return kind, text end
-        local value = 0
-        for index = n - 1, 0, -1 do value = value * 256 + at(index, 1):uint() end
-        local _, item = add_number(tree, "bitmap", at(0, n), false, value)
-        item:append_text(" (active low: 0 = triggered)")
-        add_number(tree, "payload_size", at(0, n), false, n)
-    end,
-    GET_CHARGER_DATA = function(tree, at, n)
-        if n < 2 or n ~= 2 + at(1, 1):uint() then
-            return "format", string.format("%d payload bytes, expected 2 + probe_count", n)
-        end
-        add_layout(tree, at, 0, { { "beacon_count", "u8" }, { "probe_count", "u8" } })
-        local probe_names = { "left", "main", "right" }
-        for index = 0, n - 3 do
-            local value, item = add_number(tree, "probes", at(2 + index, 1))
-            item:append_text(string.format(" (%s probe sees: %s)", probe_names[index + 1] or ("probe " .. index),
-                bits_text(value, { [0] = "left beacon", "main beacon", "right beacon" })))
-        end
-    end,
-    SET_V_AND_GET_DEADRECKON = function(tree, at, n)
-        local kind, text = need(n, 13, 17)
-        if kind then return kind, text end
-        add_layout(tree, at, 0, { { "dx_mm_q16", "s32" }, { "dy_mm_q16", "s32" }, { "dtheta_deg_q16", "s32" } })
-        local value, item = add_number(tree, "status", at(12, 1))
-        item:append_text(" (" .. bits_text(value, { [1] = "wheel stall", [2] = "traction lost" }) .. ")")
-        if n == 17 then add_layout(tree, at, 13, { { "timestamp_ms", "u32" } }) end
     end,
     POLL_BASE_CMD = function(tree, at, n)
         local kind, text = need(n, 0, 2)
@@ -934,36 +881,16 @@ local OK_FIELDS = {
         add_number(tree, "payload_size", at(0, 2), false, 2)
         add_number(tree, "pad", at(1, 1))
     end,
-    HEALTH_GET_HEALTH = function(tree, at, n)
-        local kind, text = need(n, 2)
-        if kind then return kind, text end
-        local value, item = add_number(tree, "flags", at(0, 1))
-        item:append_text(" (" .. bits_text(value, { [0] = "warning", "error", "fatal" }) .. ")")
-        add_number(tree, "error_count", at(1, 1))
-    end,
-    HEALTH_GET_ERROR = function(tree, at, n)
-        local kind, text = need(n, 36)
-        if kind then return kind, text end
-        local value, item = add_number(tree, "error_code", at(0, 4))
-        item:append_text(" (" .. describe_error_code(value) .. ")")
-        local problem = add_text(tree, "message", at(4, 32), true)
-        if problem then return "format", problem end
-    end,
 }
+for name, layout in pairs(PROTOCOL.ANSWERS) do
+    OK_FIELDS[name] = OK_FIELDS[name] or answer_by_layout(layout)
+end
 for _, name in ipairs({ "SET_BASE_MOTOR", "POLL_BASE_ANS_CMD", "SEND_EVENT", "HEALTH_CLR_ERROR", "BASE_CMD" }) do
     OK_FIELDS[name] = function(_, _, n) return need(n, 0) end
 end
 
 -- Control-bus request arguments (after the request code, and after the sub-command for HEALTH).
-local REQUEST_ARGS = {
-    CONNECT_BASE = { { "protocol_version", "u8" } },
-    GET_CHARGER_DATA = { { "data_type", "u8" } },
-    SET_BASE_MOTOR = { { "speeds_mm_s", "s32", 4 } },
-    SET_V_AND_GET_DEADRECKON = { { "vx_mps_q16", "s32" }, { "vy_mps_q16", "s32" }, { "omega_radps_q16", "s32" } },
-    SEND_EVENT = { { "event", "u8" } },
-    HEALTH_GET_ERROR = { { "index", "u8" } },
-    HEALTH_CLR_ERROR = { { "error_code", "u32" } },
-}
+local REQUEST_ARGS = PROTOCOL.REQUEST_ARGS
 
 local function layout_size(layout)
     local size = 0

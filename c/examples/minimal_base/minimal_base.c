@@ -160,7 +160,7 @@ static int32_t uart_write(void *context, const uint8_t *data, size_t size)
 
 void port_uart_received(uint8_t byte) /* the UART receive interrupt */
 {
-    (void)ctrlbus_base_feed(&base, &byte, 1); /* a full ring drops the byte and counts it */
+    (void)ctrlbus_base_feed_byte(&base, byte); /* a full ring drops the byte and counts it */
 }
 
 /* ---- start-up and the main loop ------------------------------------------------------------- */

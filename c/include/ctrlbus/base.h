@@ -15,11 +15,12 @@
  *     static ctrlbus_base_t base;
  *
  *     ctrlbus_base_init(&base, &config, millis());   // before the UART interrupt is enabled
- *     void uart_rx_isr(void) { uint8_t b = UART->DATA; ctrlbus_base_feed(&base, &b, 1); }
+ *     void uart_rx_isr(void) { (void)ctrlbus_base_feed_byte(&base, UART->DATA); }
  *     for (;;) { ctrlbus_base_poll(&base, millis()); sleep_until_interrupt(); }
  *
- * Input: ctrlbus_base_feed() puts received bytes into a single-producer/single-consumer ring over
- * the caller's rx_ring array; it is meant for the UART interrupt (see "Concurrency" below). The
+ * Input: ctrlbus_base_feed_byte() (one byte) and ctrlbus_base_feed() (a run of them) put received
+ * bytes into a single-producer/single-consumer ring over the caller's rx_ring array; they are
+ * meant for the UART interrupt (see "Concurrency" below). The
  * main loop calls ctrlbus_base_poll(), which moves the ring's bytes through the decoder, answers
  * each request and runs the motor watchdog.
  *
@@ -44,8 +45,8 @@
  * run inside ctrlbus_base_poll(), in the main loop; they may call the health and command-queue
  * functions below, but never ctrlbus_base_poll() itself.
  *
- * Concurrency and memory ordering. ctrlbus_base_feed() is the only function that may run in an
- * interrupt (or another thread); everything else belongs to the main loop, one context. The ring
+ * Concurrency and memory ordering. ctrlbus_base_feed() and ctrlbus_base_feed_byte() are the only
+ * functions that may run in an interrupt (or another thread); everything else belongs to the main loop, one context. The ring
  * has two indices, each written by one side only: rx_head by feed, rx_tail by poll. Both are
  * volatile, so the compiler neither caches them nor drops their stores, and a fence (the macro
  * CTRLBUS_RING_FENCE, below) orders the ring's data against them: feed writes the bytes, fences,
@@ -73,17 +74,15 @@
  * (a main loop stalled longer than the frame timeout while a request is arriving can time that
  * request out; the Core then sends it again).
  *
- * Footprint: ctrlbus_base_t is 64 bytes on a 32-bit MCU (scripts/size.sh prints it), besides the
- * caller's rx_ring, frame_buffer and the optional health and command storage. ctrlbus_base_poll()
- * needs at most 248 bytes of C stack on a Cortex-M0+ at -Os in the default configuration
- * (`make size` prints the worst case per target, from -fstack-usage along the call graph; other
- * cores and -O2 differ: 288 B on RV32 at -Os), plus what the handlers and write use. Answering
- * a request takes at most that, poll included, whether the answer is written (the deepest: the
- * field writer into the sink) or a handler runs (a velocity command through the limits), and the
- * decoder's take() path stays below it: the storage of the answer a handler fills (64 bytes,
- * GET_BASE_SENSOR_DATA's, the largest; GET_BASE_CONF and the 0x21 blob are written from the
- * application's storage) is on the stack while either runs, the frame writer only while the
- * answer is written. Features can be compiled out (ctrlbus/ctrlbus_config.h).
+ * Footprint: ctrlbus_base_t holds only the stack's own state (the ring indices, the decoder, the
+ * watchdog's time, the counters), besides the caller's rx_ring, frame_buffer and the optional
+ * health and command storage; nothing is allocated. ctrlbus_base_poll() needs a bounded C stack,
+ * plus what the handlers and write use: the storage of the answer a handler fills (as large as
+ * GET_BASE_SENSOR_DATA's 64 bytes, the largest; GET_BASE_CONF and the 0x21 blob are written from
+ * the application's storage) is on the stack while a handler runs or the answer is written, the
+ * frame writer only while the answer is written. `make size` prints the sizes and the worst stack
+ * per target and configuration, and docs/performance.md tables them (figures, not contracts).
+ * Features can be compiled out (ctrlbus/ctrlbus_config.h).
  *
  * Behaviour: what the stack does by itself (docs/protocol.md has the wire rules it follows):
  *  1. Order. ctrlbus_base_poll() runs the motor watchdog (6), then takes the bytes that were in
@@ -128,7 +127,7 @@
  *     standard_answers; answer sizes per the profile (ctrlbus_base_profile_t).
  *
  * What the application does:
- *   - the platform: ctrlbus_base_feed() from the UART receive interrupt, ctrlbus_base_poll()
+ *   - the platform: ctrlbus_base_feed_byte() from the UART receive interrupt, ctrlbus_base_poll()
  *     from the main loop every few milliseconds with a millisecond clock, and a write callback
  *     that takes every byte (c/examples/minimal_base/ is a complete base in one file);
  *   - per request, one handler filling the answer struct with what the robot knows. The 13
@@ -415,9 +414,14 @@ static inline uint16_t ctrlbus_base_missing_handlers(const ctrlbus_base_t *base)
  * data (returns 0).
  * ISR-safe: once ctrlbus_base_init() has returned, it may interrupt any other function of this
  * header on the same instance, as long as only one context feeds a given instance (single
- * producer). Cost: O(len) byte copies and one fence; no call, no loop over anything else.
- * Stack: 32 bytes on a Cortex-M0+ at -Os (all of it in the interrupt's frame). */
+ * producer). Cost: O(len): ctrlbus_base_feed_byte() for each byte. */
 size_t ctrlbus_base_feed(ctrlbus_base_t *base, const uint8_t *data, size_t len);
+
+/* Puts one received byte into the ring: a UART receive interrupt's call. Returns true when it was
+ * taken, false when the ring was full (the byte is dropped and counted in rx_dropped) or base is
+ * NULL. The same contract as ctrlbus_base_feed() with len 1 (ISR-safe, single producer).
+ * Cost: O(1), one fence. */
+bool ctrlbus_base_feed_byte(ctrlbus_base_t *base, uint8_t byte);
 
 /* The main loop's work, at time now_ms: runs the motor watchdog (stopping the wheels through
  * stop_motors or set_wheel_speeds when no CTRL_BUS frame came for more than watchdog_ms, once per
@@ -428,14 +432,12 @@ size_t ctrlbus_base_feed(ctrlbus_base_t *base, const uint8_t *data, size_t len);
  * in the handlers' calls and in ctrlbus_base_counters(). A write callback that fails cuts that
  * answer short; the stack carries on with the next.
  * Not ISR-safe (main loop only). Cost: the decoder's cost for the bytes taken (O(1) per byte on a
- * clean link; frame.h gives the worst case: with the decoder's bulk path (CTRLBUS_DECODER_FAST 1
- * or 2) a run of fewer than 16 bytes in the ring goes through ctrlbus_decoder_push() one byte at
- * a time and a longer one through ctrlbus_decoder_take(), whichever costs less; without it every
- * byte is pushed, and its ring slot released right after, or after the answers it completes),
+ * clean link; frame.h gives the worst case: the ring's bytes go through ctrlbus_decoder_feed() one
+ * contiguous run at a time, and their slots are released after the answers they complete),
  * plus for each request one look-up in the request table (17 rows), its handler, and the
  * answer's size in byte visits (one write call per run of integer fields, per text byte, and for
  * the header and the checksum); no work beyond the ring's content at entry. Stack: see
- * "Footprint" above (at most 248 bytes on a Cortex-M0+, plus the handlers' and write's). */
+ * "Footprint" above. */
 void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms);
 
 /* A new line: the host connected a new peer (a new TCP connection, a re-plugged cable), so the

@@ -16,11 +16,9 @@
  *   - the API functions that only it needs return CTRLBUS_ERR_UNSUPPORTED, and
  *     ctrlbus_base_init() refuses (CTRLBUS_ERR_UNSUPPORTED) a config that asks for it.
  *
- * The size effects are .text bytes of the base stack on cortex-m0plus, arm-none-eabi-gcc 12 -Os,
- * linked with --gc-sections, each switch turned off alone from the default build (4,842 B). All
- * off together, with the decoder's bulk path off too (the minimal configuration), save 2,026 B
- * (2,816 B left). Measured with `make size`, which prints both configurations for every target;
- * docs/performance.md tables them.
+ * What each switch saves is measured, not stated here: `make size` prints the base stack per target
+ * in the default configuration, in the minimal one (every switch off) and with each switch off
+ * alone, and docs/performance.md tables the figures.
  */
 #ifndef CTRLBUS_CTRLBUS_CONFIG_H
 #define CTRLBUS_CTRLBUS_CONFIG_H
@@ -33,7 +31,7 @@
  * watchdog's health warning). Off: HEALTH_GET_HEALTH (mandatory) answers no errors,
  * HEALTH_GET_ERROR and HEALTH_CLR_ERROR answer 0x8002 (no such error, as with an empty registry),
  * ctrlbus_base_health_add/_clear return CTRLBUS_ERR_UNSUPPORTED, and a config with
- * health_entries is refused. Size effect: 428 B. */
+ * health_entries is refused. */
 #ifndef CTRLBUS_CONFIG_HEALTH
 #define CTRLBUS_CONFIG_HEALTH 1
 #endif
@@ -41,31 +39,29 @@
 /* External commands offered to the Core (ctrlbus_base_queue_command, POLL_BASE_CMD with a
  * pending command, the nCMD line callback). Off: POLL_BASE_CMD (mandatory) always answers
  * "nothing pending", POLL_BASE_ANS_CMD answers OK, ctrlbus_base_queue_command returns
- * CTRLBUS_ERR_UNSUPPORTED, and a config with command_queue storage is refused.
- * Size effect: 234 B. */
+ * CTRLBUS_ERR_UNSUPPORTED, and a config with command_queue storage is refused. */
 #ifndef CTRLBUS_CONFIG_COMMAND_QUEUE
 #define CTRLBUS_CONFIG_COMMAND_QUEUE 1
 #endif
 
 /* The velocity limits (ctrlbus_base_config_t.limits, docs/protocol.md §9.2), including the
  * differential-drive arithmetic they need. Off: commands reach the handlers unchanged, and a
- * config with any limit set is refused. Size effect: 352 B (ctrlbus/diffdrive.h's wheel speeds
- * 124 B and the scaling 118 B, in 32-bit arithmetic: no libgcc multiply or divide; the rest is
- * the clamping and the calls in the request handling). */
+ * config with any limit set is refused. (ctrlbus/diffdrive.h's wheel speeds and scaling are in
+ * 32-bit arithmetic: no libgcc multiply or divide.) */
 #ifndef CTRLBUS_CONFIG_LIMITS
 #define CTRLBUS_CONFIG_LIMITS 1
 #endif
 
 /* The sdk2020 profile (CTRLBUS_PROFILE_SDK2020: CONNECT with its suffix, deadreckon with the
  * timestamp, bumpers padded to 4 bytes, POLL_BASE_CMD's FF 00). Off: only the reference profile;
- * a config asking for sdk2020 is refused. Size effect: 84 B. */
+ * a config asking for sdk2020 is refused. */
 #ifndef CTRLBUS_CONFIG_PROFILE_SDK2020
 #define CTRLBUS_CONFIG_PROFILE_SDK2020 1
 #endif
 
 /* GET_BASE_CONF_ADV (0x21), streamed from ctrlbus_base_config_t.binary_config. Off: the request
  * is answered 0x8000 (the Core then asks GET_BASE_CONF), and a config with a binary_config is
- * refused. Size effect: 12 B. */
+ * refused. */
 #ifndef CTRLBUS_CONFIG_CONF_ADV
 #define CTRLBUS_CONFIG_CONF_ADV 1
 #endif
@@ -75,28 +71,9 @@
  * a Core or a test tool needs and a base never does. They live in their own file
  * (src/messages_master.c), so a base firmware linked with --gc-sections never pays for them;
  * off, they are neither compiled nor declared (using one is a compile error).
- * Size effect on the base stack: 0 B (they were never linked into it); on the whole library
- * (every object, unlinked): 1,661 B (src/messages_master.c). */
+ * A base stack never links them; the switch only shortens the library's own build. */
 #ifndef CTRLBUS_CONFIG_MASTER_CODECS
 #define CTRLBUS_CONFIG_MASTER_CODECS 1
-#endif
-
-/* The frame decoder's bulk path (ctrlbus_decoder_feed() in ctrlbus/frame.h): 0 = off, the
- * compact core alone; 1 = on, the bulk path with shortcuts for the most common feeds (a whole
- * frame, a frame's start); 2 = the compact core with the few fast steps an -Os build needs (a
- * whole frame checked in place by take, a frame's known remainder copied in one run, push's
- * inline path). The default is 1, or 2 when compiling with -Os (as MCU firmware is). Every level
- * gives the same results on the wire; the levels trade code for speed (docs/performance.md). The
- * minimal configuration has it off. Size effect (frame.c's decoder, cortex-m0plus -Os): level 0
- * about 0.7 KB linked into a base that uses push, next and tick; level 2 about 1.4 KB in the
- * default base; level 1 about 3.5 KB (ctrlbus/frame.h at ctrlbus_decoder_feed()). The default
- * base stack is 3,966 B at level 0, 4,842 B at level 2 and 6,646 B at level 1. */
-#ifndef CTRLBUS_DECODER_FAST
-#if defined(__OPTIMIZE_SIZE__)
-#define CTRLBUS_DECODER_FAST 2
-#else
-#define CTRLBUS_DECODER_FAST 1
-#endif
 #endif
 
 /* Where the application's constant answers live: the GET_BASE_CONF answer (config->base_conf,
@@ -107,9 +84,8 @@
  * On an ATmega328P this keeps the GET_BASE_CONF answer out of the 2 KB of RAM (c/ports/README.md:
  * the Uno's minimal base builds so). Only on a little-endian CPU (refused at compile time
  * otherwise). Not a feature switch: it changes no behaviour, and Zephyr, whose targets read const
- * data in place, has no option for it. Size effect on the Uno's minimal base (avr-gcc, LTO):
- * 178 B of code (the answer's writer for that memory), and the answer's 264 B move from RAM
- * to flash. */
+ * data in place, has no option for it. It adds the answer's writer for that memory, and moves
+ * the answer's 264 bytes from RAM to flash. */
 #ifndef CTRLBUS_CONST_IN_FLASH
 #define CTRLBUS_CONST_IN_FLASH 0
 #endif
@@ -118,15 +94,14 @@
  * it for the whole build, e.g. -DCTRLBUS_DEFAULT_PROFILE=CTRLBUS_PROFILE_SDK2020, to build a
  * firmware for the vendor's 2020 master SDK without touching its code (c/ports builds mps2-an385's
  * sdk2020 image so). Zero is CTRLBUS_PROFILE_REFERENCE, so with the sdk2020 default the reference
- * profile cannot be chosen at run time. Size effect: none. */
+ * profile cannot be chosen at run time. */
 #ifndef CTRLBUS_DEFAULT_PROFILE
 #define CTRLBUS_DEFAULT_PROFILE CTRLBUS_PROFILE_REFERENCE
 #endif
 
 /* The effective switches, checked at link time. The library defines one function whose name spells
- * the switches it was compiled with, e.g. ctrlbus_config_h1_q1_l1_p1_a1_m1_d2_f0 (health, command
- * queue, limits, sdk2020, conf_adv, master codecs: 0 or 1; the decoder level: 0, 1 or 2; const in
- * flash: 0 or 1), and
+ * the switches it was compiled with, e.g. ctrlbus_config_h1_q1_l1_p1_a1_m1_f0 (health, command
+ * queue, limits, sdk2020, conf_adv, master codecs, const in flash: 0 or 1), and
  * CTRLBUS_CONFIG_CHECK(), a statement for the firmware's start-up code, calls the one this
  * translation unit's switches name. When the library archive was built with other switches (a
  * config header not applied, a -D missing in one build), the link fails with "undefined reference
@@ -162,26 +137,19 @@
 #else
 #define CTRLBUS_CONFIG_BIT_M_ 0
 #endif
-#if CTRLBUS_DECODER_FAST == 0
-#define CTRLBUS_CONFIG_BIT_D_ 0
-#elif CTRLBUS_DECODER_FAST == 1
-#define CTRLBUS_CONFIG_BIT_D_ 1
-#else
-#define CTRLBUS_CONFIG_BIT_D_ 2
-#endif
 #if CTRLBUS_CONST_IN_FLASH
 #define CTRLBUS_CONFIG_BIT_F_ 1
 #else
 #define CTRLBUS_CONFIG_BIT_F_ 0
 #endif
-#define CTRLBUS_CONFIG_NAME_(h, q, l, p, a, m, d, f)                                               \
-    ctrlbus_config_h##h##_q##q##_l##l##_p##p##_a##a##_m##m##_d##d##_f##f
-#define CTRLBUS_CONFIG_NAME(h, q, l, p, a, m, d, f) CTRLBUS_CONFIG_NAME_(h, q, l, p, a, m, d, f)
+#define CTRLBUS_CONFIG_NAME_(h, q, l, p, a, m, f)                                                  \
+    ctrlbus_config_h##h##_q##q##_l##l##_p##p##_a##a##_m##m##_f##f
+#define CTRLBUS_CONFIG_NAME(h, q, l, p, a, m, f) CTRLBUS_CONFIG_NAME_(h, q, l, p, a, m, f)
 /* The name of the function for this translation unit's switches. */
 #define CTRLBUS_CONFIG_SYMBOL                                                                      \
     CTRLBUS_CONFIG_NAME(CTRLBUS_CONFIG_BIT_H_, CTRLBUS_CONFIG_BIT_Q_, CTRLBUS_CONFIG_BIT_L_,       \
                         CTRLBUS_CONFIG_BIT_P_, CTRLBUS_CONFIG_BIT_A_, CTRLBUS_CONFIG_BIT_M_,       \
-                        CTRLBUS_CONFIG_BIT_D_, CTRLBUS_CONFIG_BIT_F_)
+                        CTRLBUS_CONFIG_BIT_F_)
 /* Links only against a library built with the same switches (see above). Main loop, once. */
 #define CTRLBUS_CONFIG_CHECK() ((void)CTRLBUS_CONFIG_SYMBOL())
 

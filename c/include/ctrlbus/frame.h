@@ -201,13 +201,11 @@ typedef struct {
     uint32_t max_frame;    /* usable buffer size, at most CTRLBUS_FRAME_MAX */
     uint32_t start;        /* first byte of the current candidate */
     uint32_t end;          /* one past the last buffered byte */
-    uint32_t complete_at;  /* the `end` that completes the buffered candidate, when known and
-                            * ctrlbus_decoder_push() may append to it inline; else 0 (levels 0
-                            * and 2: while a frame waits for next(), its size) */
+    uint32_t complete_at;  /* the `end` that completes the buffered candidate once its size is
+                            * known, or the size of a frame waiting for next(); else 0 */
     uint32_t last_byte_ms; /* time of the last byte fed */
     uint16_t timeout_ms;   /* 0 = no inter-byte timeout */
-    uint8_t checksum;      /* XOR of buffer[start..end) while waiting for more bytes (levels 0
-                            * and 2: a byte push() holds behind a timeout's results) */
+    uint8_t checksum;      /* a byte push() holds behind a timeout's results */
     uint8_t state;         /* pending result and flags, see frame.c */
 } ctrlbus_decoder_t;
 
@@ -253,99 +251,17 @@ void ctrlbus_decoder_reset(ctrlbus_decoder_t *decoder);
  * up to about max_frame^2 / 4 bytes when the failed span is full of nested false candidates, e.g.
  * 65536 visits for a 512-byte buffer; that work happens in the call that found the failure or in
  * the ctrlbus_decoder_next() calls after it. Nothing depends on history beyond the buffer.
- * At levels 0 and 2 (the compact core, below) a candidate's checksum is taken once, when its last
- * byte arrives, and a scan that ends waiting moves the incomplete candidate to the front of the
- * buffer (at most max_frame moves per scan; a clean link still costs O(1) per byte).
- *
- * Speed: the compile-time option CTRLBUS_DECODER_FAST chooses the decoder's core. 1 (the
- * default): the bulk path, a feed takes the bytes of a frame whose length is known in one step (it
- * skips garbage up to the next flag in a tight loop, copies the frame into the buffer and computes
- * its checksum a machine word at a time), with shortcuts for the most common feeds (a whole frame,
- * a frame's start); only a header split between feeds, an oversize length, a failure and the
- * rescan after it go byte by byte. 0: the compact core alone, the smallest decoder, byte by byte.
- * 2 (the default when compiling with -Os, as MCU firmware is): the compact core with the few fast
- * steps a firmware build needs: ctrlbus_decoder_take() checks a whole frame in place and buffers
- * a frame's start in one copy, a feed copies a candidate's known remainder in one run (garbage
- * goes byte by byte), and push settles a frame's header and last byte itself. The
- * results are the same at every level (the fuzz target c/fuzz/fuzz_decoder.c compares level 1 with
- * levels 0 and 2, level 2 call by call). For one byte at a time, use ctrlbus_decoder_push() rather
- * than a feed of 1.
- * Measured with callgrind on x86-64 (bench/c/ctrlbus_parse.c, a Core<->base session, the caller's
- * loop included; docs/performance.md has the current figures): fed in 64-byte chunks about 9
- * instructions per byte at -O2 (level 1) and 24 at -Os (level 2), against about 68 at level 0;
- * ctrlbus_decoder_take() on the same chunks about 3.2 (inlined) and 9.4. Code on a Cortex-M0+ at
- * -Os (arm-none-eabi-gcc, frame.c's whole decoder): level 0 about 0.9 KB, of which a base that
- * uses push, next and tick links about 0.7 KB; level 2 about 1.5 KB (1.4 KB linked into the
- * default base); level 1 about 3.5 KB. Set CTRLBUS_DECODER_FAST=0 where flash matters more than
- * cycles. */
+ * Cost class: O(1) per byte on a clean link (a candidate's known remainder goes in as one copy and
+ * its checksum is taken once, when it is complete). For one byte at a time, use
+ * ctrlbus_decoder_push() rather than a feed of 1; ctrlbus_decoder_take() takes a chunk one result
+ * per call and hands a whole frame out in place. */
 size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, size_t len,
                             uint32_t now_ms);
 
 
-/* Whether ctrlbus_decoder_push() and ctrlbus_decoder_take() settle their commonest cases inline,
- * in the caller. push, when nothing waits and (but for a flag into an empty buffer) the
- * millisecond is the byte before's: a frame's flag and length bytes, its last byte when its
- * checksum matches (the frame is returned at once), and a garbage byte outside any frame once its
- * gap's event has been raised; that is about 60 more instructions of code at each call site, in
- * exchange for three calls of ctrlbus_decoder_push_slow() per frame. take, when nothing is
- * buffered or waiting: a whole valid frame at the start of the input, and the input used up;
- * about 50 instructions of code at each call site, for a call per frame. On by default except
- * when optimising for size; define it to 0 or 1 to choose. Without the bulk path
- * (CTRLBUS_DECODER_FAST 0) only take's inline case exists: push always calls push_slow(). */
-#ifndef CTRLBUS_DECODER_INLINE
-#if defined(__OPTIMIZE_SIZE__)
-#define CTRLBUS_DECODER_INLINE 0
-#else
-#define CTRLBUS_DECODER_INLINE 1
-#endif
-#endif
-/* Private, for the inline push and take (frame.c checks that they match its own): the decoder->state bits
- * that mean a result or a rescan waits, the bit "an event was raised since the last frame", the
- * bits that a buffer running empty clears, and complete_at for a long flag alone in the buffer
- * (its first length byte takes the inline path, the second is checked like a standard length). */
-#define CTRLBUS_DECODER_WAITING_ 0x97u
-#define CTRLBUS_DECODER_EVENT_SINCE_FRAME_ 0x08u
-#define CTRLBUS_DECODER_EMPTY_CLEARS_ 0x68u
-#define CTRLBUS_DECODER_LONG_HEADER_ARMED_ 3u
-
-/* Private: whether a machine word may be read at any alignment with a plain load. Not on ARMv6-M
- * (Cortex-M0/M0+) and other ARM cores without unaligned access: there memcpy of a word is a call,
- * slower than reading bytes and one more stack frame. */
-#if defined(__arm__) && !defined(__ARM_FEATURE_UNALIGNED)
-#define CTRLBUS_WORD_READS_ 0
-#else
-#define CTRLBUS_WORD_READS_ 1
-#endif
-
-/* Private: the XOR of bytes[0..n), read a machine word (size_t) at a time through memcpy (safe at
- * any alignment; compilers make plain loads of it), then 4 bytes, then byte by byte; byte by byte
- * only where words cannot be read unaligned (CTRLBUS_WORD_READS_). */
-static inline uint8_t ctrlbus_xor_in_place_(const uint8_t *bytes, uint32_t n)
-{
-    size_t acc = 0; /* the XOR of the bytes read, lane by lane */
-    const uint8_t *end = bytes + n;
-    for (; CTRLBUS_WORD_READS_ && (size_t)(end - bytes) >= sizeof acc; bytes += sizeof acc) {
-        size_t word;
-        memcpy(&word, bytes, sizeof word);
-        acc ^= word;
-    }
-    if (sizeof acc > 4u && end - bytes >= 4) {
-        uint32_t word;
-        memcpy(&word, bytes, 4u);
-        acc ^= (size_t)word; /* only compiled in with a 64-bit size_t */
-        bytes += 4;
-    }
-    for (; bytes < end; bytes++) {
-        acc ^= *bytes;
-    }
-    for (unsigned shift = (unsigned)sizeof acc * 4u; shift >= 8u; shift /= 2u) {
-        acc ^= acc >> shift; /* fold: the low byte becomes the XOR of all the lanes */
-    }
-    return (uint8_t)acc;
-}
-
 /* Decodes the caller's bytes data[0..len) (passed as *data and *len) and returns the next result
  * in stream order, taking bytes as it needs them: *data and *len are advanced past the bytes taken.
+ * This is the entry point for a chunk of received bytes (a DMA or ring buffer's, a host's read).
  * Returns CTRLBUS_RX_FRAME with *frame filled in (frame may be NULL), an event, or CTRLBUS_RX_NONE
  * once every byte has been taken and no result waits (*len is then 0). It is the same decoder as
  * the feed loop shown at ctrlbus_decoder_feed() (its results, counters and timeout, all bytes
@@ -356,69 +272,17 @@ static inline uint8_t ctrlbus_xor_in_place_(const uint8_t *bytes, uint32_t n)
  *                           CTRLBUS_RX_NONE;)
  *         handle(rx, &frame);
  *
- * A whole valid frame at the start of the bytes, with nothing buffered or waiting, is not copied
- * (unless the build has neither the bulk path nor the inline paths): its payload then points into
- * the caller's bytes, so keep them unchanged until the frame has been handled (a ring's slots must
- * not be released to the writer before). Any other frame's payload lies in the decoder's buffer,
- * as with ctrlbus_decoder_next(). A NULL *data takes nothing and sets *len
- * to 0; a NULL decoder, data or len returns CTRLBUS_RX_NONE. Not ISR-safe (as
+ * A whole valid frame at the start of the bytes, with nothing buffered or waiting, is not copied:
+ * its payload then points into the caller's bytes, so keep them unchanged until the frame has been
+ * handled (a ring's slots must not be released to the writer before). Any other frame's payload
+ * lies in the decoder's buffer, as with ctrlbus_decoder_next(). A NULL *data takes nothing and sets
+ * *len to 0; a NULL decoder, data or len returns CTRLBUS_RX_NONE. Not ISR-safe (as
  * ctrlbus_decoder_feed()).
  *
- * Cost: such an in-place frame costs its header checks and a word-at-a-time XOR of its bytes, with
- * no copy, inline in the caller (CTRLBUS_DECODER_INLINE). The end of a frame split between calls,
- * the start of one and a garbage run are settled by ctrlbus_decoder_take_slow() in one step each
- * (a copy into the buffer); failures and the rescan after them take the feed's path (see
- * ctrlbus_decoder_feed()). Over a Core<->base session in 64-byte chunks about 3.2 instructions
- * per byte at -O2 and 9.4 at -Os on x86-64, the caller's loop included (docs/performance.md).
- * At level 2 (CTRLBUS_DECODER_FAST 2) take_slow() settles only the in-place frame and a frame's
- * start in one step; the rest is the feed loop. At level 0 it is the feed loop, but for the
- * inline case (CTRLBUS_DECODER_INLINE). ctrlbus_decoder_take_slow() is the same function
- * without the inline path, with the same contract: call ctrlbus_decoder_take(). */
-ctrlbus_rx_t ctrlbus_decoder_take_slow(ctrlbus_decoder_t *decoder, const uint8_t **data,
-                                       size_t *len, uint32_t now_ms, ctrlbus_frame_t *frame);
-
-static inline ctrlbus_rx_t ctrlbus_decoder_take(ctrlbus_decoder_t *decoder, const uint8_t **data,
-                                                size_t *len, uint32_t now_ms,
-                                                ctrlbus_frame_t *frame)
-{
-#if CTRLBUS_DECODER_INLINE
-    /* Nothing buffered (end 0: start is 0 too) or waiting: the input used up needs nothing, and a
-     * whole frame with a command that fits at its start is checked and handed out in place. */
-    if (decoder != NULL && data != NULL && len != NULL && *data != NULL && decoder->end == 0u &&
-        (decoder->state & CTRLBUS_DECODER_WAITING_) == 0u) {
-        const uint8_t *in = *data;
-        size_t n = *len;
-        if (n >= CTRLBUS_STANDARD_OVERHEAD && (in[0] | 0x40u) == CTRLBUS_FLAG_LONG) {
-            bool is_long = in[0] == CTRLBUS_FLAG_LONG;
-            uint32_t header = is_long ? 3u : 2u;
-            uint32_t len_field = is_long ? (in[1] | (uint32_t)in[2] << 8) : in[1];
-            uint32_t size = header + len_field + 1u;
-            if (len_field != 0u && size <= n && size <= decoder->max_frame &&
-                ctrlbus_xor_in_place_(in, size) == 0u) {
-                if (frame != NULL) {
-                    frame->is_long = is_long;
-                    frame->cmd = in[header];
-                    frame->payload = in + header + 1u;
-                    frame->payload_len = (size_t)(len_field - 1u);
-                }
-                if (decoder->stats != NULL) {
-                    decoder->stats->frames += 1u;
-                }
-                decoder->complete_at = 0u;
-                decoder->last_byte_ms = now_ms;
-                decoder->state =
-                    (uint8_t)(decoder->state & (uint8_t)~CTRLBUS_DECODER_EMPTY_CLEARS_);
-                *data = in + size;
-                *len = n - (size_t)size;
-                return CTRLBUS_RX_FRAME;
-            }
-        } else if (n == 0u) {
-            return CTRLBUS_RX_NONE;
-        }
-    }
-#endif
-    return ctrlbus_decoder_take_slow(decoder, data, len, now_ms, frame);
-}
+ * Cost class: as ctrlbus_decoder_feed(); a whole frame handed out in place costs one pass over its
+ * bytes (the checksum) and no copy, a frame's start one copy into the buffer. */
+ctrlbus_rx_t ctrlbus_decoder_take(ctrlbus_decoder_t *decoder, const uint8_t **data, size_t *len,
+                                  uint32_t now_ms, ctrlbus_frame_t *frame);
 
 /* Takes one received byte (a UART interrupt's, or one from a ring) stamped with now_ms, and returns
  * the first result it completes: CTRLBUS_RX_NONE (the usual answer: the byte is inside a frame),
@@ -437,117 +301,16 @@ static inline ctrlbus_rx_t ctrlbus_decoder_take(ctrlbus_decoder_t *decoder, cons
  *         handle(rx, &frame);
  *
  * Pushing while results still wait takes nothing and returns CTRLBUS_RX_BUSY. A NULL decoder, or
- * a zeroed one never initialised by ctrlbus_decoder_init(), takes nothing and returns CTRLBUS_RX_NONE. Not
- * ISR-safe against other calls on the same decoder
- * (as ctrlbus_decoder_feed()).
+ * a zeroed one never initialised by ctrlbus_decoder_init(), takes nothing and returns
+ * CTRLBUS_RX_NONE. Not ISR-safe against other calls on the same decoder (as
+ * ctrlbus_decoder_feed()): a receive interrupt may call it when it is the only context that
+ * calls the decoder; otherwise it should put the bytes in a ring for the main loop.
  *
- * Cost: a byte inside a frame whose length is known, stamped with the same millisecond as the
- * byte before it, takes the inline path below (two comparisons, a store and at level 1 an XOR: about 10
- * instructions where it is inlined, no call). Any other byte (a header byte, the last byte of a
- * frame, a new millisecond, garbage, a failure) calls ctrlbus_decoder_push_slow(), which settles
- * the frame's first and last bytes in a few dozen instructions and hands the rest to the general
- * path, whose cost is described at ctrlbus_decoder_feed(). With CTRLBUS_DECODER_INLINE (the
- * default unless optimising for size, below) a frame's header and last byte and quiet garbage take
- * inline paths too (level 1 only), and a clean frame makes no call at all. Over a Core<->base
- * session that averages about 18 instructions per byte at -O2 and 22 at -Os on x86-64, calls
- * included (bench/c/ctrlbus_parse.c; docs/performance.md). At level 0 (CTRLBUS_DECODER_FAST 0, the
- * smallest build) push has no inline path at all: each byte is a call of push_slow(), which is a
- * feed of that byte and a ctrlbus_decoder_next(). ctrlbus_decoder_push_slow() is the same function
- * without the inline paths, with the same contract: call ctrlbus_decoder_push(). */
-ctrlbus_rx_t ctrlbus_decoder_push_slow(ctrlbus_decoder_t *decoder, uint8_t byte, uint32_t now_ms,
-                                       ctrlbus_frame_t *frame);
-
-
-static inline ctrlbus_rx_t ctrlbus_decoder_push(ctrlbus_decoder_t *decoder, uint8_t byte,
-                                                uint32_t now_ms, ctrlbus_frame_t *frame)
-{
-#if CTRLBUS_DECODER_FAST
-    if (decoder == NULL) {
-        return CTRLBUS_RX_NONE;
-    }
-    uint32_t end = decoder->end;
-    uint32_t complete_at = decoder->complete_at;
-    /* complete_at is 0 unless the buffered candidate's size is known, nothing waits and the
-     * candidate fits the buffer where it is; the same millisecond means no timeout to apply. */
-    if (end + 1u < complete_at && now_ms == decoder->last_byte_ms) {
-        decoder->buffer[end] = byte;
-        decoder->end = end + 1u;
-#if CTRLBUS_DECODER_FAST == 1 /* (level 2 checks a candidate once, when it is complete) */
-        decoder->checksum = (uint8_t)(decoder->checksum ^ byte);
-#endif
-        return CTRLBUS_RX_NONE;
-    }
-#if CTRLBUS_DECODER_INLINE && CTRLBUS_DECODER_FAST == 1
-    if ((decoder->state & CTRLBUS_DECODER_WAITING_) == 0u && decoder->buffer != NULL) {
-        uint8_t *buffer = decoder->buffer;
-        if (end == 0u) {
-            /* Nothing buffered (start is 0 too): a flag starts a candidate, garbage after its
-             * gap's event is only counted. */
-            if ((byte | 0x40u) == CTRLBUS_FLAG_LONG) {
-                buffer[0] = byte;
-                decoder->end = 1u;
-                decoder->checksum = byte;
-                decoder->last_byte_ms = now_ms;
-                decoder->complete_at =
-                    byte == CTRLBUS_FLAG_LONG ? CTRLBUS_DECODER_LONG_HEADER_ARMED_ : 0u;
-                return CTRLBUS_RX_NONE;
-            }
-            if (decoder->state & CTRLBUS_DECODER_EVENT_SINCE_FRAME_) {
-                if (decoder->stats != NULL) {
-                    decoder->stats->bytes_discarded += 1u;
-                }
-                decoder->last_byte_ms = now_ms;
-                return CTRLBUS_RX_NONE;
-            }
-        } else if (now_ms == decoder->last_byte_ms) {
-            if (end + 1u == complete_at && complete_at > CTRLBUS_DECODER_LONG_HEADER_ARMED_) {
-                /* The armed candidate's last byte: a frame when its checksum matches. */
-                if ((decoder->checksum ^ byte) == 0u) {
-                    uint32_t start = decoder->start;
-                    const uint8_t *cand = buffer + start;
-                    buffer[end] = byte;
-                    if (frame != NULL) {
-                        bool is_long = cand[0] == CTRLBUS_FLAG_LONG;
-                        uint32_t header = is_long ? 3u : 2u;
-                        frame->is_long = is_long;
-                        frame->cmd = cand[header];
-                        frame->payload = cand + header + 1u;
-                        frame->payload_len = (size_t)(complete_at - start - header - 2u);
-                    }
-                    if (decoder->stats != NULL) {
-                        decoder->stats->frames += 1u;
-                    }
-                    decoder->start = decoder->end = decoder->complete_at = 0u;
-                    decoder->checksum = 0u;
-                    decoder->state =
-                        (uint8_t)(decoder->state & (uint8_t)~CTRLBUS_DECODER_EMPTY_CLEARS_);
-                    return CTRLBUS_RX_FRAME;
-                }
-            } else {
-                /* A length byte: end 1 with the checksum 0x10 is a standard flag alone at
-                 * buffer[0]; end 2 with complete_at LONG_HEADER_ARMED_ a long flag and its first
-                 * length byte. */
-                uint32_t size = 0u; /* of the whole frame */
-                if (end == 1u && decoder->checksum == CTRLBUS_FLAG_STANDARD) {
-                    size = byte + 3u;
-                } else if (end == 2u && complete_at == CTRLBUS_DECODER_LONG_HEADER_ARMED_) {
-                    size = (buffer[1] | (uint32_t)byte << 8) + 4u;
-                }
-                /* a frame with a command (LEN > 0) that fits: arm the inline path */
-                if (size > end + 2u && size <= decoder->max_frame) {
-                    buffer[end] = byte;
-                    decoder->end = end + 1u;
-                    decoder->checksum = (uint8_t)(decoder->checksum ^ byte);
-                    decoder->complete_at = size;
-                    return CTRLBUS_RX_NONE;
-                }
-            }
-        }
-    }
-#endif
-#endif /* CTRLBUS_DECODER_FAST: without the bulk path, every byte goes to push_slow() */
-    return ctrlbus_decoder_push_slow(decoder, byte, now_ms, frame);
-}
+ * Cost class: O(1) for a byte inside a frame whose size is known (a comparison and a store); a
+ * frame's last byte costs one pass over the frame (its checksum); a failure costs the rescan
+ * described at ctrlbus_decoder_feed(). */
+ctrlbus_rx_t ctrlbus_decoder_push(ctrlbus_decoder_t *decoder, uint8_t byte, uint32_t now_ms,
+                                  ctrlbus_frame_t *frame);
 
 /* Applies the inter-byte timeout at now_ms without new bytes (the same as feeding 0 bytes). Call it
  * from the main loop; then take results with ctrlbus_decoder_next(). A partial frame older than the

@@ -100,17 +100,23 @@ extern "C" {
 #define CTRLBUS_WIRE_ERR_FORMAT 0x8001u            /* bad request payload */
 #define CTRLBUS_WIRE_ERR_OPERATION 0x8002u         /* failed to execute (also unknown HEALTH sub) */
 
-/* GET_BASE_STATUS power_status bits. */
-#define CTRLBUS_POWER_CHARGING 0x01u
-#define CTRLBUS_POWER_DC_CONNECTED 0x02u
-#define CTRLBUS_POWER_ON_DOCK 0x04u
-/* status bits of GET_BASE_MOTOR_DATA and SET_V_AND_GET_DEADRECKON. */
-#define CTRLBUS_MOTOR_STALL 0x02u
-#define CTRLBUS_MOTOR_TRACTION_LOST 0x04u
-/* HEALTH_GET_HEALTH flags, and the level byte (bits 31..24) of a health error code. */
-#define CTRLBUS_HEALTH_WARNING 0x01u
-#define CTRLBUS_HEALTH_ERROR 0x02u
-#define CTRLBUS_HEALTH_FATAL 0x04u
+/* BEGIN GENERATED bits (make generate: from protocol/ctrlbus.json) */
+/* GET_BASE_STATUS power_status ([status]). */
+#define CTRLBUS_POWER_CHARGING 0x01u /* charging */
+#define CTRLBUS_POWER_DC_CONNECTED 0x02u /* DC connected */
+#define CTRLBUS_POWER_ON_DOCK 0x04u /* on the dock */
+#define CTRLBUS_POWER_DOCK_DETECTED 0x08u /* dock detected */
+#define CTRLBUS_POWER_DOCK_CONTACTED 0x10u /* dock contacted */
+#define CTRLBUS_POWER_DOCK_NEGOTIATING 0x20u /* dock negotiating */
+/* status of GET_BASE_MOTOR_DATA and SET_V_AND_GET_DEADRECKON ([motor-data]). */
+#define CTRLBUS_MOTOR_STALL 0x02u /* wheel stall */
+#define CTRLBUS_MOTOR_TRACTION_LOST 0x04u /* traction lost */
+/* HEALTH_GET_HEALTH flags, and the level byte (bits 31..24) of a health error code ([health-
+ * list]). */
+#define CTRLBUS_HEALTH_WARNING 0x01u /* warning */
+#define CTRLBUS_HEALTH_ERROR 0x02u /* error */
+#define CTRLBUS_HEALTH_FATAL 0x04u /* fatal */
+/* END GENERATED bits */
 #define CTRLBUS_HEALTH_CODE(level, component, type, index)                                     \
     (((uint32_t)(level) << 24) | ((uint32_t)(component) << 16) | ((uint32_t)(type) << 8) |      \
      (uint32_t)(index))
@@ -119,17 +125,18 @@ extern "C" {
 
 /* ---- field and payload sizes ---------------------------------------------------------------- */
 
-#define CTRLBUS_MODEL_LEN 12u                   /* CONNECT_BASE model */
+/* BEGIN GENERATED sizes (make generate: from protocol/ctrlbus.json) */
+/* Field counts. */
+#define CTRLBUS_MODEL_LEN 12u /* CONNECT_BASE model */
+#define CTRLBUS_SERIAL_WORDS 3u /* CONNECT_BASE serial */
 #define CTRLBUS_FIRMWARE_VERSION_SUFFIX_LEN 11u /* CONNECT_BASE firmware_version_suffix */
-#define CTRLBUS_SERIAL_WORDS 3u                 /* CONNECT_BASE serial */
-#define CTRLBUS_CONF_SLOTS 8u                   /* GET_BASE_CONF sensors / bumpers */
-#define CTRLBUS_SENSOR_CHANNELS 16u             /* GET_BASE_SENSOR_DATA distances */
-#define CTRLBUS_MOTOR_SPEEDS 4u                 /* SET_BASE_MOTOR speeds */
-#define CTRLBUS_HEALTH_MESSAGE_LEN 32u          /* HEALTH_GET_ERROR message, NUL included */
-
+#define CTRLBUS_CONF_SLOTS 8u /* GET_BASE_CONF sensors */
+#define CTRLBUS_SENSOR_CHANNELS 16u /* GET_BASE_SENSOR_DATA distances_mm_q16 */
+#define CTRLBUS_MOTOR_SPEEDS 4u /* SET_BASE_MOTOR speeds_mm_s */
+#define CTRLBUS_HEALTH_MESSAGE_LEN 32u /* HEALTH_GET_ERROR message */
 /* Request payloads (CMD 0xF8: request code and sub-command included). */
-#define CTRLBUS_BASE_CMD_REQUEST_SIZE 1u
 #define CTRLBUS_PLAIN_REQUEST_SIZE 1u /* requests without argument: just the code */
+#define CTRLBUS_BASE_CMD_REQUEST_SIZE 1u
 #define CTRLBUS_CONNECT_BASE_REQUEST_SIZE 2u
 #define CTRLBUS_GET_CHARGER_DATA_REQUEST_SIZE 2u
 #define CTRLBUS_SET_BASE_MOTOR_REQUEST_SIZE 17u
@@ -138,21 +145,31 @@ extern "C" {
 #define CTRLBUS_HEALTH_GET_HEALTH_REQUEST_SIZE 2u
 #define CTRLBUS_HEALTH_GET_ERROR_REQUEST_SIZE 3u
 #define CTRLBUS_HEALTH_CLR_ERROR_REQUEST_SIZE 6u
-
-/* OK answer payloads. Where the reference knows two forms, both are accepted when decoding. */
-#define CTRLBUS_CONNECT_BASE_ANSWER_SIZE 28u             /* 2018 reference */
-#define CTRLBUS_CONNECT_BASE_ANSWER_SIZE_WITH_SUFFIX 39u /* 2020 SDK */
+/* OK answer payloads. Where the sources know two forms, both are accepted when decoding. */
+#define CTRLBUS_CONNECT_BASE_ANSWER_SIZE 28u /* without firmware_version_suffix */
+#define CTRLBUS_CONNECT_BASE_ANSWER_SIZE_WITH_SUFFIX 39u
 #define CTRLBUS_GET_BASE_CONF_ANSWER_SIZE 264u
+#define CTRLBUS_GET_BASE_CONF_ANSWER_SIZE_OF(answer) CTRLBUS_GET_BASE_CONF_ANSWER_SIZE
 #define CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE 2u
+#define CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE_OF(answer) CTRLBUS_GET_BASE_STATUS_ANSWER_SIZE
 #define CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE 9u
+#define CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE_OF(answer) CTRLBUS_GET_BASE_MOTOR_DATA_ANSWER_SIZE
 #define CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE 64u
+#define CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE_OF(answer) CTRLBUS_GET_BASE_SENSOR_DATA_ANSWER_SIZE
 #define CTRLBUS_GET_BASE_BUMPER_DATA_ANSWER_SIZE 4u /* 1..4 accepted */
-#define CTRLBUS_GET_CHARGER_DATA_ANSWER_MIN 2u      /* + probe_count */
-#define CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE 13u                /* 2018 reference */
-#define CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_WITH_TIMESTAMP 17u /* 2020 SDK */
-#define CTRLBUS_POLL_BASE_CMD_ANSWER_SIZE 2u /* or 0 (nothing pending, v4 form) */
+#define CTRLBUS_GET_CHARGER_DATA_ANSWER_MIN 2u /* + probe_count */
+#define CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE 13u /* without timestamp_ms */
+#define CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_WITH_TIMESTAMP 17u
+/* The form a ctrlbus_set_v_and_get_deadreckon_answer_t asks for (its has_timestamp_ms). */
+#define CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_OF(answer) \
+    ((answer)->has_timestamp_ms ? CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE_WITH_TIMESTAMP \
+                                 : CTRLBUS_SET_V_AND_GET_DEADRECKON_ANSWER_SIZE)
+#define CTRLBUS_POLL_BASE_CMD_ANSWER_SIZE 2u /* or 0 */
 #define CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE 2u
+#define CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE_OF(answer) CTRLBUS_HEALTH_GET_HEALTH_ANSWER_SIZE
 #define CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE 36u
+#define CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE_OF(answer) CTRLBUS_HEALTH_GET_ERROR_ANSWER_SIZE
+/* END GENERATED sizes */
 #define CTRLBUS_ERROR_ANSWER_SIZE 2u
 
 /* ---- requests ------------------------------------------------------------------------------- */
@@ -301,19 +318,22 @@ int32_t ctrlbus_request_encode(uint8_t *out, size_t out_size, const ctrlbus_requ
 
 /* ---- answers -------------------------------------------------------------------------------- */
 
-/* Text fields hold the ASCII characters up to the first NUL, plus a terminating NUL. */
+/* Text fields hold the ASCII characters up to the first NUL, plus a terminating NUL (a field
+ * that keeps its NUL on the wire, like HEALTH_GET_ERROR's message, holds one character less). */
+/* BEGIN GENERATED answer structs (make generate: from protocol/ctrlbus.json) */
+/* CONNECT_BASE (docs/protocol.md [connect]) */
 typedef struct {
-    char model[CTRLBUS_MODEL_LEN + 1]; /* "ref base" */
-    uint16_t firmware_version;         /* (major << 8) | minor */
+    char model[CTRLBUS_MODEL_LEN + 1]; /* the reference sends "ref base" */
+    uint16_t firmware_version; /* (major << 8) | minor, 0x0114 = 1.20 */
     uint16_t hardware_version;
-    uint32_t serial[CTRLBUS_SERIAL_WORDS];
-    /* false: the 28-byte form (no suffix field on the wire, the contract's null) */
-    bool has_firmware_version_suffix;
+    uint32_t serial[CTRLBUS_SERIAL_WORDS]; /* the reference sends the MCU's 96-bit unique id */
+    bool has_firmware_version_suffix; /* false: the shorter form (the contract's null) */
+    /* 39-byte form only; `null` in the 28-byte form */
     char firmware_version_suffix[CTRLBUS_FIRMWARE_VERSION_SUFFIX_LEN + 1];
 } ctrlbus_connect_base_answer_t;
 
-/* Where a sensor or bumper sits: mm Q8 from the robot centre (x forward, y left, z up), angle in
- * degrees Q8, anticlockwise, 0..360. */
+/* Where a sensor or bumper sits, relative to the robot centre, x forward, y left, z up (right-
+ * handed). */
 typedef struct {
     int32_t x_mm_q8;
     int32_t y_mm_q8;
@@ -321,55 +341,79 @@ typedef struct {
     uint32_t angle_deg_q8;
 } ctrlbus_position_t;
 
+/* GET_BASE_CONF (docs/protocol.md [base-conf]) */
 typedef struct {
-    uint8_t base_type; /* 0 circle, 1 square */
-    uint32_t base_radius_mm_q8;
-    uint8_t motor_type; /* 0 two-wheel differential */
-    uint8_t sensor_num; /* in use, at most 8 */
-    ctrlbus_position_t sensors[CTRLBUS_CONF_SLOTS];
-    uint8_t bumper_num; /* at most 8 */
-    ctrlbus_position_t bumpers[CTRLBUS_CONF_SLOTS];
+    uint8_t base_type;
+    uint32_t base_radius_mm_q8; /* mm, Q8 */
+    uint8_t motor_type;
+    uint8_t sensor_num; /* distance sensors in use, 0..8 */
+    ctrlbus_position_t sensors[CTRLBUS_CONF_SLOTS]; /* unused slots zero */
+    uint8_t bumper_num; /* 0..8 */
+    ctrlbus_position_t bumpers[CTRLBUS_CONF_SLOTS]; /* unused slots zero */
 } ctrlbus_get_base_conf_answer_t;
 
+/* GET_BASE_CONF_ADV (docs/protocol.md [base-conf-adv]) */
 typedef struct {
-    const uint8_t *blob; /* opaque binary configuration, any length */
+    const uint8_t *blob; /* opaque binary configuration, any length (§12) */
     size_t blob_len;
 } ctrlbus_get_base_conf_adv_answer_t;
 
+/* GET_BASE_STATUS (docs/protocol.md [status]) */
 typedef struct {
-    uint8_t battery_percent;
+    uint8_t battery_percent; /* %; 0..100 */
     uint8_t power_status; /* CTRLBUS_POWER_* bits */
 } ctrlbus_get_base_status_answer_t;
 
+/* GET_BASE_MOTOR_DATA (docs/protocol.md [motor-data]) */
 typedef struct {
-    int32_t left_distance_mm;
-    int32_t right_distance_mm;
+    int32_t left_distance_mm; /* mm; accumulated travel */
+    int32_t right_distance_mm; /* mm; accumulated travel */
     uint8_t status; /* CTRLBUS_MOTOR_* bits */
 } ctrlbus_get_base_motor_data_answer_t;
 
+/* GET_BASE_SENSOR_DATA (docs/protocol.md [sensor-data]) */
 typedef struct {
+    /* mm, Q16; one per sensor slot of the configuration */
     uint32_t distances_mm_q16[CTRLBUS_SENSOR_CHANNELS];
 } ctrlbus_get_base_sensor_data_answer_t;
 
+/* GET_BASE_BUMPER_DATA (docs/protocol.md [bumper-data]) */
 typedef struct {
-    uint32_t bitmap;      /* active low: 0 = triggered; zero-padded from a short answer */
-    uint8_t payload_size; /* 1..4 bytes on the wire (4 is current, 1 the 2018 firmware) */
+    uint32_t bitmap; /* active low: a 0 bit means triggered; 1..4 bytes, read zero-padded */
+    uint8_t payload_size; /* bytes on the wire */
 } ctrlbus_get_base_bumper_data_answer_t;
 
+/* GET_CHARGER_DATA (docs/protocol.md [charger-data]) */
 typedef struct {
-    uint8_t beacon_count;
-    uint8_t probe_count;
-    const uint8_t *probes; /* probe_count bitmaps (left, main, right for 3 probes) */
+    uint8_t beacon_count; /* 3 */
+    uint8_t probe_count; /* 3 */
+    /* in the order left, main, right; each a bitmap of the dock beacons the probe sees */
+    const uint8_t *probes;
 } ctrlbus_get_charger_data_answer_t;
 
+/* SET_V_AND_GET_DEADRECKON (docs/protocol.md [set-v]) */
 typedef struct {
-    int32_t dx_mm_q16;
-    int32_t dy_mm_q16;
-    int32_t dtheta_deg_q16; /* degrees, anticlockwise positive */
-    uint8_t status;         /* CTRLBUS_MOTOR_* bits */
-    bool has_timestamp_ms;  /* false: the 13-byte form (the contract's null) */
+    int32_t dx_mm_q16; /* mm, Q16 */
+    int32_t dy_mm_q16; /* mm, Q16 */
+    int32_t dtheta_deg_q16; /* degrees, Q16; anticlockwise positive */
+    uint8_t status; /* CTRLBUS_MOTOR_* bits; same bits as GET_BASE_MOTOR_DATA */
+    bool has_timestamp_ms; /* false: the shorter form (the contract's null) */
+    /* ms; since the base powered up (17-byte form only; `null` in the 13-byte form) */
     uint32_t timestamp_ms;
 } ctrlbus_set_v_and_get_deadreckon_answer_t;
+
+/* HEALTH_GET_HEALTH (docs/protocol.md [health]) */
+typedef struct {
+    uint8_t flags; /* CTRLBUS_HEALTH_* bits */
+    uint8_t error_count;
+} ctrlbus_health_get_health_answer_t;
+
+/* HEALTH_GET_ERROR (docs/protocol.md [health]) */
+typedef struct {
+    uint32_t error_code; /* layout §10.1 */
+    char message[CTRLBUS_HEALTH_MESSAGE_LEN]; /* NUL-terminated (§1.5): at most 31 characters */
+} ctrlbus_health_get_error_answer_t;
+/* END GENERATED answer structs */
 
 /* The three forms: payload_size 0 (nothing pending, v4), payload_size 2 with has_command false
  * (nothing pending, 0xFF form; pad is the second byte), payload_size 2 with has_command true. */
@@ -379,18 +423,6 @@ typedef struct {
     uint8_t payload_size; /* 0 or 2 */
     uint8_t pad;          /* the don't-care second byte; 0 when payload_size is 0 */
 } ctrlbus_poll_base_cmd_answer_t;
-
-typedef struct {
-    uint8_t flags; /* CTRLBUS_HEALTH_WARNING / _ERROR / _FATAL */
-    uint8_t error_count;
-} ctrlbus_health_get_health_answer_t;
-
-typedef struct {
-    uint32_t error_code; /* CTRLBUS_HEALTH_CODE(level, component, type, index) */
-    /* At most 31 characters: the 32-byte wire field always keeps a NUL (decoding a field
-     * without one is a FORMAT error). */
-    char message[CTRLBUS_HEALTH_MESSAGE_LEN];
-} ctrlbus_health_get_error_answer_t;
 
 typedef struct {
     uint16_t error_code; /* CTRLBUS_WIRE_ERR_* */

@@ -44,7 +44,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from ctrlbus import binconf
+from ctrlbus import binconf, protocol_tables
 from ctrlbus.capture import Direction
 from ctrlbus.compat import StrEnum
 from ctrlbus.constants import LINE_FAULT_LIMIT
@@ -111,27 +111,10 @@ _FLUSH_TIMEOUT_S = 1.0
 # flushing SYNC). Seconds of capture time; a base answers within milliseconds.
 PAIR_DEPTH = 4
 PAIR_WINDOW_S = 1.0
-# OK payload sizes each request's answer may have (the same table as the Wireshark dissector's
-# pairing): a tuple of sizes, "blob" (any size) or "charger" (2 + probe_count).
-OK_SIZES: Mapping[str, Any] = {
-    "CONNECT_BASE": (28, 39),
-    "GET_BASE_CONF": (264,),
-    "GET_BASE_CONF_ADV": "blob",
-    "GET_BASE_STATUS": (2,),
-    "GET_BASE_MOTOR_DATA": (9,),
-    "GET_BASE_SENSOR_DATA": (64,),
-    "GET_BASE_BUMPER_DATA": (1, 2, 3, 4),
-    "GET_CHARGER_DATA": "charger",
-    "SET_V_AND_GET_DEADRECKON": (13, 17),
-    "POLL_BASE_CMD": (0, 2),
-    "HEALTH_GET_HEALTH": (2,),
-    "HEALTH_GET_ERROR": (36,),
-    "SET_BASE_MOTOR": (0,),
-    "POLL_BASE_ANS_CMD": (0,),
-    "SEND_EVENT": (0,),
-    "HEALTH_CLR_ERROR": (0,),
-    "BASE_CMD": (0,),
-}
+# OK payload sizes each request's answer may have, from the protocol description (the same table
+# as the Wireshark dissector's and the sigrok decoder's pairing): a tuple of sizes, "any", or
+# "counted" (a fixed head, then as many bytes as the head's last byte says).
+OK_SIZES = protocol_tables.OK_SIZES
 
 
 NO_REQUEST_TEXT = "no request outstanding: an OK payload can only be read knowing its request"
@@ -143,10 +126,11 @@ def ok_size_fits(name: str | None, payload: bytes) -> bool:
     sizes = OK_SIZES.get(name or "")
     if sizes is None:
         return True
-    if sizes == "blob":
+    if sizes == "any":
         return True  # a blob of any size (the codec takes even an empty one)
-    if sizes == "charger":
-        return len(payload) >= 2 and len(payload) == 2 + payload[1]
+    if sizes == "counted":
+        head = protocol_tables.OK_COUNTED_HEAD[name or ""]
+        return len(payload) >= head and len(payload) == head + payload[head - 1]
     return len(payload) in sizes
 
 
@@ -837,9 +821,10 @@ def _bits_text(value: int, bits: Mapping[int, str], none: str) -> str:
     return f"0x{value:02X} ({', '.join(set_bits) if set_bits else none})"
 
 
-_HEALTH_BITS = {0x01: "warning", 0x02: "error", 0x04: "fatal"}
-_HEALTH_LEVELS = {1: "warning", 2: "error", 4: "fatal"}
-_HEALTH_COMPONENTS = {0: "user", 1: "system", 2: "power", 3: "motion", 4: "sensor"}
+# Bit meanings and code names from the protocol description (protocol/ctrlbus.json).
+_HEALTH_BITS = protocol_tables.HEALTH_FLAGS_BITS
+_HEALTH_LEVELS = protocol_tables.HEALTH_LEVELS
+_HEALTH_COMPONENTS = protocol_tables.HEALTH_COMPONENTS
 _ERROR_MEANINGS = {
     ErrorCode.NOT_SYNCED: "channel not synchronised",
     ErrorCode.TOO_LONG: "request too long",
@@ -849,8 +834,8 @@ _ERROR_MEANINGS = {
     ErrorCode.FORMAT: "format error",
     ErrorCode.OPERATION: "operation failed",
 }
-_BASE_TYPES = {0: "round", 1: "square"}
-_MOTOR_TYPES = {0: "two-wheel differential"}
+_BASE_TYPES = protocol_tables.BASE_TYPES
+_MOTOR_TYPES = protocol_tables.MOTOR_TYPES
 
 
 def _health_code_text(code: int) -> str:

@@ -9,11 +9,14 @@ the checker and the annotator all need:
 - the bits of GET_BASE_STATUS: power and motion;
 - the answer profiles (`Profile`) and the answer sizes that tell them apart.
 
-tests/test_constants.py proves by grep that none of these is defined anywhere else.
+tests/test_constants.py proves by grep that none of these is defined anywhere else. The bit
+meanings themselves come from the protocol description (protocol/ctrlbus.json, generated into
+ctrlbus.protocol_tables), as the C, Wireshark and sigrok tables do.
 """
 
 from __future__ import annotations
 
+from ctrlbus import protocol_tables
 from ctrlbus.compat import StrEnum
 from ctrlbus.errors import UsageError
 from ctrlbus.messages import ConnectBaseAnswer, SetVAndGetDeadreckonAnswer
@@ -86,30 +89,21 @@ REFERENCE_LOW_BATTERY_MESSAGE = "low battery"
 # --- line faults (protocol §11.6): an ERROR code below LINE_FAULT_LIMIT is the base receiver's
 # state, bits ORed together by the reference; never an answer, the request is sent again.
 
-LINE_FAULT_LIMIT = 0x0100
-LINE_FAULT_BIT_NAMES = {
-    0x10: "not synchronised",
-    0x20: "too long",
-    0x40: "checksum",
-    0x80: "a frame was ready",
-}
+LINE_FAULT_LIMIT = protocol_tables.LINE_FAULTS_BELOW
+LINE_FAULT_BIT_NAMES = protocol_tables.LINE_FAULTS_BITS
 
 # --- GET_BASE_STATUS bits (protocol.md §5.4, §5.5) ---------------------------------------------
 
-POWER_CHARGING = 0x01
-POWER_DC_CONNECTED = 0x02
-POWER_ON_DOCK = 0x04
-POWER_DEFINED_BITS = 0x3F  # bits 0-2 from the reference, 3-5 from the 2020 SDK
-MOTION_STALL = 0x02
-MOTION_TRACTION_LOST = 0x04
-MOTION_DEFINED_BITS = MOTION_STALL | MOTION_TRACTION_LOST
+POWER_CHARGING = protocol_tables.POWER_STATUS_CHARGING
+POWER_DC_CONNECTED = protocol_tables.POWER_STATUS_DC_CONNECTED
+POWER_ON_DOCK = protocol_tables.POWER_STATUS_ON_DOCK
+POWER_DEFINED_BITS = protocol_tables.POWER_STATUS_DEFINED  # 0-2 from the reference, 3-5 the 2020 SDK
+MOTION_STALL = protocol_tables.MOTOR_STATUS_STALL
+MOTION_TRACTION_LOST = protocol_tables.MOTOR_STATUS_TRACTION_LOST
+MOTION_DEFINED_BITS = protocol_tables.MOTOR_STATUS_DEFINED
 
-POWER_BIT_NAMES = {
-    POWER_CHARGING: "charging",
-    POWER_DC_CONNECTED: "DC connected",
-    POWER_ON_DOCK: "on the dock",
-}
-MOTION_BIT_NAMES = {MOTION_STALL: "wheel stall", MOTION_TRACTION_LOST: "traction lost"}
+POWER_BIT_NAMES = protocol_tables.POWER_STATUS_BITS
+MOTION_BIT_NAMES = protocol_tables.MOTOR_STATUS_BITS
 
 # --- answer profiles (protocol.md §6.2) -------------------------------------------------------
 

@@ -37,8 +37,23 @@ from dataclasses import dataclass
 from dataclasses import fields as dataclass_fields
 from typing import TYPE_CHECKING, Any, ClassVar
 
+from ctrlbus import protocol_tables
 from ctrlbus.errors import MessageFormatError, UnsupportedMessageError, UnsupportedSubcommandError
 from ctrlbus.frame import encode as encode_frame
+from ctrlbus.protocol_tables import (
+    ConnectBaseAnswerFields,
+    GetBaseBumperDataAnswerFields,
+    GetBaseConfAdvAnswerFields,
+    GetBaseConfAnswerFields,
+    GetBaseMotorDataAnswerFields,
+    GetBaseSensorDataAnswerFields,
+    GetBaseStatusAnswerFields,
+    GetChargerDataAnswerFields,
+    HealthGetErrorAnswerFields,
+    HealthGetHealthAnswerFields,
+    PositionFields,
+    SetVAndGetDeadreckonAnswerFields,
+)
 
 if TYPE_CHECKING:
     from typing_extensions import Self  # typing.Self from Python 3.11; annotations only
@@ -315,6 +330,10 @@ class Message:
     NAME: ClassVar[str]
     # Fields whose layout is fixed: packed and unpacked in field order with this struct.
     _LAYOUT: ClassVar[struct.Struct | None] = None
+    # Or a layout whose last field, _TAIL, is optional (None: not sent): the form without it and
+    # the form with it (docs/protocol.md [profiles]).
+    _FORMS: ClassVar[tuple[struct.Struct, struct.Struct] | None] = None
+    _TAIL: ClassVar[str | None] = None
     # Integer fields and their allowed ranges, checked on construction.
     _RANGES: ClassVar[Mapping[str, tuple[int, int]]] = {}
     # Fields holding bytes; bytearray/memoryview given for them are stored as bytes.
@@ -340,8 +359,11 @@ class Message:
             for item in value:
                 _check_int(owner, name, item, limits)
             object.__setattr__(self, name, tuple(value))
+        tail = self._TAIL
         for name, limits in self._RANGES.items():
-            _check_int(owner, name, getattr(self, name), limits)
+            value = getattr(self, name)
+            if tail is None or value is not None or name != tail:  # a tail not sent is None
+                _check_int(owner, name, value, limits)
         self._check()
 
     def _check(self) -> None:
@@ -349,13 +371,17 @@ class Message:
 
     def _pack(self) -> bytes:
         """The message's own bytes (after the request code / sub-command for control-bus requests)."""
-        if self._LAYOUT is None:
-            return b""
+        layout = self._LAYOUT or (self._FORMS[1] if self._FORMS else None)
+        if layout is None:  # no fields, or one bytes field: the whole payload
+            return bytes(getattr(self, self._BYTES[0])) if self._BYTES else b""
         values: list[Any] = []
         for item in dataclass_fields(self):
             value = getattr(self, item.name)
+            if value is None and item.name == self._TAIL:
+                layout = self._FORMS[0] if self._FORMS else layout
+                continue
             values.extend(value if isinstance(value, tuple) else (value,))
-        return self._LAYOUT.pack(*values)
+        return layout.pack(*values)
 
     @classmethod
     def _label(cls) -> str:
@@ -365,18 +391,28 @@ class Message:
     @classmethod
     def _unpack(cls, data: bytes) -> Self:
         """Inverse of _pack; raises MessageFormatError on a wrong length or value."""
-        if cls._LAYOUT is None:
+        layout = cls._LAYOUT
+        if layout is None and cls._FORMS is not None:
+            short, long = cls._FORMS
+            _check_length(cls._label(), data, short.size, long.size, what=cls._PART)
+            layout = long if len(data) == long.size else short
+        elif layout is None and cls._BYTES:
+            return cls(**{cls._BYTES[0]: data})
+        elif layout is None:
             _check_length(cls._label(), data, 0, what=cls._PART)
             return cls()
-        _check_length(cls._label(), data, cls._LAYOUT.size, what=cls._PART)
-        values = list(cls._LAYOUT.unpack(data))
+        else:
+            _check_length(cls._label(), data, layout.size, what=cls._PART)
+        if not cls._ARRAYS:  # one value a field, in order; a tail not sent keeps its None
+            return cls(*layout.unpack(data))
+        values = list(layout.unpack(data))
         arguments: list[Any] = []
         for item in dataclass_fields(cls):
             if item.name in cls._ARRAYS:
                 count = cls._ARRAYS[item.name][1]
                 arguments.append(tuple(values[:count]))
                 del values[:count]
-            else:
+            elif values:
                 arguments.append(values.pop(0))
         return cls(*arguments)
 
@@ -419,13 +455,6 @@ class Sync(RequestMessage):
 
     filler: bytes = b""
 
-    def _pack(self) -> bytes:
-        return self.filler
-
-    @classmethod
-    def _unpack(cls, data: bytes) -> Self:
-        return cls(data)
-
 
 @dataclass(frozen=True)
 class Echo(RequestMessage):
@@ -436,13 +465,6 @@ class Echo(RequestMessage):
     _BYTES: ClassVar[tuple[str, ...]] = ("data",)
 
     data: bytes = b""
-
-    def _pack(self) -> bytes:
-        return self.data
-
-    @classmethod
-    def _unpack(cls, data: bytes) -> Self:
-        return cls(data)
 
 
 @dataclass(frozen=True)
@@ -663,13 +685,6 @@ class SyncAnswer(AnswerMessage):
 
     filler: bytes = b""
 
-    def _pack(self) -> bytes:
-        return self.filler
-
-    @classmethod
-    def _unpack(cls, data: bytes) -> Self:
-        return cls(data)
-
 
 @dataclass(frozen=True)
 class EchoAnswer(AnswerMessage):
@@ -680,13 +695,6 @@ class EchoAnswer(AnswerMessage):
     _BYTES: ClassVar[tuple[str, ...]] = ("data",)
 
     data: bytes = b""
-
-    def _pack(self) -> bytes:
-        return self.data
-
-    @classmethod
-    def _unpack(cls, data: bytes) -> Self:
-        return cls(data)
 
 
 @dataclass(frozen=True)
@@ -716,20 +724,9 @@ class EmptyAnswer(OkAnswer):
 
 
 @dataclass(frozen=True)
-class ConnectBaseAnswer(OkAnswer):
+class ConnectBaseAnswer(ConnectBaseAnswerFields, OkAnswer):
     """Base identity. `firmware_version_suffix` is None in the 28-byte (reference) form and text in
     the 39-byte form the vendor's 2020 SDK expects."""
-
-    _REFERENCE_FORM: ClassVar[struct.Struct] = struct.Struct("<12sHH3I")  # 28 bytes
-    _SDK_FORM: ClassVar[struct.Struct] = struct.Struct("<12sHH3I11s")  # 39 bytes
-    _RANGES: ClassVar[Mapping[str, tuple[int, int]]] = {"firmware_version": U16, "hardware_version": U16}
-    _ARRAYS: ClassVar[Mapping[str, tuple[tuple[int, int], int]]] = {"serial": (U32, 3)}
-
-    model: str
-    firmware_version: int
-    hardware_version: int
-    serial: tuple[int, int, int]
-    firmware_version_suffix: str | None = None
 
     def _check(self) -> None:
         _check_text("ConnectBaseAnswer", "model", self.model, 12)
@@ -765,14 +762,9 @@ class ConnectBaseAnswer(OkAnswer):
 
 
 @dataclass(frozen=True)
-class Position:
+class Position(PositionFields):
     """Where a sensor or bumper sits: mm Q8 from the robot centre (x forward, y left, z up),
     angle in degrees Q8, anticlockwise, 0..360."""
-
-    x_mm_q8: int = 0
-    y_mm_q8: int = 0
-    z_mm_q8: int = 0
-    angle_deg_q8: int = 0
 
     def __post_init__(self) -> None:
         for name in ("x_mm_q8", "y_mm_q8", "z_mm_q8"):
@@ -801,30 +793,19 @@ class Position:
 
 
 _POSITION = struct.Struct("<iiiI")
-_CONF_SLOTS = 8  # sensor and bumper positions in GET_BASE_CONF
+_CONF_SLOTS = protocol_tables.CONF_SLOTS  # sensor and bumper positions in GET_BASE_CONF
 
 
 @dataclass(frozen=True)
-class GetBaseConfAnswer(OkAnswer):
+class GetBaseConfAnswer(GetBaseConfAnswerFields, OkAnswer):
     """Base configuration (264 bytes). Fewer than 8 positions may be given: the unused slots are
     filled with zero positions, as on the wire."""
 
     _HEAD: ClassVar[struct.Struct] = struct.Struct("<BIBB")
-    _SIZE: ClassVar[int] = 1 + 4 + 1 + 1 + _CONF_SLOTS * _POSITION.size + 1 + _CONF_SLOTS * _POSITION.size
-    _RANGES: ClassVar[Mapping[str, tuple[int, int]]] = {
-        "base_type": U8,
-        "base_radius_mm_q8": U32,
-        "motor_type": U8,
-        "sensor_num": (0, _CONF_SLOTS),
-        "bumper_num": (0, _CONF_SLOTS),
-    }
+    _SIZE: ClassVar[int] = GetBaseConfAnswerFields._WIRE.size
 
-    base_type: int
-    base_radius_mm_q8: int
-    motor_type: int
-    sensor_num: int
+    # the positions as this module's Position (their place in the field order stays)
     sensors: tuple[Position, ...]
-    bumper_num: int
     bumpers: tuple[Position, ...]
 
     def _check(self) -> None:
@@ -895,62 +876,27 @@ def _unpack_positions(data: bytes, at: int) -> tuple[Position, ...]:
 
 
 @dataclass(frozen=True)
-class GetBaseConfAdvAnswer(OkAnswer):
+class GetBaseConfAdvAnswer(GetBaseConfAdvAnswerFields, OkAnswer):
     """The binary configuration, carried as opaque bytes here (its tree codec lives elsewhere)."""
 
-    _BYTES: ClassVar[tuple[str, ...]] = ("blob",)
-
-    blob: bytes
-
-    def _pack(self) -> bytes:
-        return self.blob
-
-    @classmethod
-    def _unpack(cls, data: bytes) -> Self:
-        return cls(data)
-
 
 @dataclass(frozen=True)
-class GetBaseStatusAnswer(OkAnswer):
-    """`power_status` bits: 0 charging, 1 DC power connected, 2 on the dock. A `battery_percent`
+class GetBaseStatusAnswer(GetBaseStatusAnswerFields, OkAnswer):
+    """`power_status` bits: POWER_STATUS_BITS (ctrlbus.protocol_tables). A `battery_percent`
     above 100 is kept as sent (docs/protocol.md [status]: the conformance checker flags it)."""
 
-    _LAYOUT: ClassVar[struct.Struct | None] = struct.Struct("<BB")
-    _RANGES: ClassVar[Mapping[str, tuple[int, int]]] = {"battery_percent": U8, "power_status": U8}
 
-    battery_percent: int
-    power_status: int
+@dataclass(frozen=True)
+class GetBaseMotorDataAnswer(GetBaseMotorDataAnswerFields, OkAnswer):
+    """Accumulated wheel travel; `status` bits: MOTOR_STATUS_BITS (ctrlbus.protocol_tables)."""
+
+
+SENSOR_CHANNELS = protocol_tables.SENSOR_CHANNELS
 
 
 @dataclass(frozen=True)
-class GetBaseMotorDataAnswer(OkAnswer):
-    """Accumulated wheel travel; `status` bits: 1 wheel stall, 2 traction lost."""
-
-    _LAYOUT: ClassVar[struct.Struct | None] = struct.Struct("<iiB")
-    _RANGES: ClassVar[Mapping[str, tuple[int, int]]] = {
-        "left_distance_mm": S32,
-        "right_distance_mm": S32,
-        "status": U8,
-    }
-
-    left_distance_mm: int
-    right_distance_mm: int
-    status: int
-
-
-SENSOR_CHANNELS = 16
-
-
-@dataclass(frozen=True)
-class GetBaseSensorDataAnswer(OkAnswer):
+class GetBaseSensorDataAnswer(GetBaseSensorDataAnswerFields, OkAnswer):
     """Distance per sensor in mm Q16 (16 channels, index = position in the configuration)."""
-
-    _LAYOUT: ClassVar[struct.Struct | None] = struct.Struct(f"<{SENSOR_CHANNELS}I")
-    _ARRAYS: ClassVar[Mapping[str, tuple[tuple[int, int], int]]] = {
-        "distances_mm_q16": (U32, SENSOR_CHANNELS)
-    }
-
-    distances_mm_q16: tuple[int, ...]
 
     @classmethod
     def from_si(cls, distances_mm: Sequence[float]) -> Self:
@@ -966,14 +912,9 @@ class GetBaseSensorDataAnswer(OkAnswer):
 
 
 @dataclass(frozen=True)
-class GetBaseBumperDataAnswer(OkAnswer):
+class GetBaseBumperDataAnswer(GetBaseBumperDataAnswerFields, OkAnswer):
     """Bumper and cliff bitmap, ACTIVE LOW (0 = triggered). `payload_size` is how many bytes were
     sent (4 now, 1 in the 2018 firmware); a short answer is zero-padded to 32 bits."""
-
-    _RANGES: ClassVar[Mapping[str, tuple[int, int]]] = {"bitmap": U32, "payload_size": (1, 4)}
-
-    bitmap: int
-    payload_size: int = 4
 
     def _check(self) -> None:
         if self.bitmap >> (8 * self.payload_size):
@@ -991,15 +932,9 @@ class GetBaseBumperDataAnswer(OkAnswer):
 
 
 @dataclass(frozen=True)
-class GetChargerDataAnswer(OkAnswer):
+class GetChargerDataAnswer(GetChargerDataAnswerFields, OkAnswer):
     """Dock beacon data: one byte per probe (left, main, right), each a bitmap of the beacons it
-    sees (bit0 left, bit1 main, bit2 right)."""
-
-    _RANGES: ClassVar[Mapping[str, tuple[int, int]]] = {"beacon_count": U8, "probe_count": U8}
-
-    beacon_count: int
-    probe_count: int
-    probes: tuple[int, ...]
+    sees (CHARGER_PROBE_BITS of ctrlbus.protocol_tables)."""
 
     def _check(self) -> None:
         probes = self.probes
@@ -1028,28 +963,9 @@ class GetChargerDataAnswer(OkAnswer):
 
 
 @dataclass(frozen=True)
-class SetVAndGetDeadreckonAnswer(OkAnswer):
+class SetVAndGetDeadreckonAnswer(SetVAndGetDeadreckonAnswerFields, OkAnswer):
     """Motion since the previous call, Q16: dx, dy in mm, dtheta in DEGREES (anticlockwise).
     `timestamp_ms` is None in the 13-byte (reference) form, set in the 17-byte SDK form."""
-
-    _REFERENCE_FORM: ClassVar[struct.Struct] = struct.Struct("<iiiB")  # 13 bytes
-    _SDK_FORM: ClassVar[struct.Struct] = struct.Struct("<iiiBI")  # 17 bytes
-    _RANGES: ClassVar[Mapping[str, tuple[int, int]]] = {
-        "dx_mm_q16": S32,
-        "dy_mm_q16": S32,
-        "dtheta_deg_q16": S32,
-        "status": U8,
-    }
-
-    dx_mm_q16: int
-    dy_mm_q16: int
-    dtheta_deg_q16: int
-    status: int = 0
-    timestamp_ms: int | None = None
-
-    def _check(self) -> None:
-        if self.timestamp_ms is not None:
-            _check_int("SetVAndGetDeadreckonAnswer", "timestamp_ms", self.timestamp_ms, U32)
 
     @classmethod
     def from_si(
@@ -1068,19 +984,6 @@ class SetVAndGetDeadreckonAnswer(OkAnswer):
     @property
     def dtheta_deg(self) -> float:
         return from_q16(self.dtheta_deg_q16)
-
-    def _pack(self) -> bytes:
-        head = (self.dx_mm_q16, self.dy_mm_q16, self.dtheta_deg_q16, self.status)
-        if self.timestamp_ms is None:
-            return self._REFERENCE_FORM.pack(*head)
-        return self._SDK_FORM.pack(*head, self.timestamp_ms)
-
-    @classmethod
-    def _unpack(cls, data: bytes) -> Self:
-        _check_length("SET_V_AND_GET_DEADRECKON answer", data, 13, 17)
-        if len(data) == 17:
-            return cls(*cls._SDK_FORM.unpack(data))
-        return cls(*cls._REFERENCE_FORM.unpack(data))
 
 
 @dataclass(frozen=True)
@@ -1127,29 +1030,17 @@ class PollBaseCmdAnswer(OkAnswer):
 
 
 @dataclass(frozen=True)
-class HealthGetHealthAnswer(OkAnswer):
-    """`flags` bits: 0 warning, 1 error, 2 fatal."""
-
-    _LAYOUT: ClassVar[struct.Struct | None] = struct.Struct("<BB")
-    _RANGES: ClassVar[Mapping[str, tuple[int, int]]] = {"flags": U8, "error_count": U8}
-
-    flags: int
-    error_count: int
+class HealthGetHealthAnswer(HealthGetHealthAnswerFields, OkAnswer):
+    """`flags` bits: HEALTH_FLAGS_BITS (ctrlbus.protocol_tables)."""
 
 
-HEALTH_MESSAGE_SIZE = 32
+HEALTH_MESSAGE_SIZE = protocol_tables.HEALTH_MESSAGE_LEN
 
 
 @dataclass(frozen=True)
-class HealthGetErrorAnswer(OkAnswer):
+class HealthGetErrorAnswer(HealthGetErrorAnswerFields, OkAnswer):
     """One registered error: its u32 code and a text of at most 31 characters (NUL-terminated in
     32 bytes on the wire)."""
-
-    _WIRE: ClassVar[struct.Struct] = struct.Struct(f"<I{HEALTH_MESSAGE_SIZE}s")
-    _RANGES: ClassVar[Mapping[str, tuple[int, int]]] = {"error_code": U32}
-
-    error_code: int
-    message: str = ""
 
     def _check(self) -> None:
         _check_text("HealthGetErrorAnswer", "message", self.message, HEALTH_MESSAGE_SIZE - 1)

@@ -20,30 +20,13 @@ MAX_FRAME = 65539
 
 # --- names -------------------------------------------------------------------
 
-TOP_REQUESTS = {0x00: 'SYNC', 0x01: 'ECHO', 0xF8: 'CTRL_BUS', 0xF9: 'BASE_CMD'}
-RESPONSES = {0x00: 'SYNC', 0x01: 'ECHO', 0x02: 'OK', 0x03: 'ERROR', 0xFF: 'INVALID'}
-CTRL_REQUESTS = {
-    0x10: 'CONNECT_BASE', 0x20: 'GET_BASE_CONF', 0x21: 'GET_BASE_CONF_ADV',
-    0x30: 'GET_BASE_STATUS', 0x31: 'GET_BASE_MOTOR_DATA',
-    0x32: 'GET_BASE_SENSOR_DATA', 0x33: 'GET_BASE_BUMPER_DATA',
-    0x34: 'GET_CHARGER_DATA', 0x35: 'GET_AUXILIARY_ANCHOR',
-    0x40: 'SET_BASE_MOTOR', 0x41: 'SET_V_AND_GET_DEADRECKON',
-    0x50: 'POLL_BASE_CMD', 0x5F: 'POLL_BASE_ANS_CMD', 0x60: 'SEND_EVENT',
-    0x90: 'HEALTH_MGMT',
-}
-HEALTH_SUBS = {0x01: 'HEALTH_GET_HEALTH', 0x02: 'HEALTH_GET_ERROR', 0x03: 'HEALTH_CLR_ERROR'}
-BASE_SUBCOMMANDS = {0x01: 'ENTER_DFU', 0x02: 'REBOOT'}
-EVENTS = {
-    0x61: 'LIDAR_CONN_FAIL', 0x62: 'LIDAR_RAMPUP_FAIL', 0x63: 'SYSTEM_UP_OK',
-    0x64: 'FIRMWARE_UPDATE', 0x65: 'CORE_DISCONNECT', 0x66: 'FIRMWARE_UPDATE_OK',
-    0x80: 'START_SWEEP', 0x81: 'END_SWEEP', 0x82: 'START_VACUUM', 0x83: 'END_VACUUM',
-}
-EXTERNAL_COMMANDS = {
-    0x51: 'GET_INFO', 0x52: 'RESET_WIFI', 0x53: 'FW_UPGRADING', 0x80: 'START_SWEEP',
-    0x81: 'STOP_SWEEP', 0x82: 'SPOT_SWEEP', 0x90: 'GET_HEALTH', 0xA0: 'MOVE_FORWARD',
-    0xA1: 'MOVE_BACKWARD', 0xA2: 'TURN_LEFT', 0xA3: 'TURN_RIGHT', 0xA4: 'GO_HOME',
-    0xAF: 'CANCEL_ACTION', 0xB0: 'GET_AUXILIARY_ANCHOR',
-}
+# Names, bit meanings and layouts: protocol.py, generated from protocol/ctrlbus.json.
+from .protocol import (ANSWERS, BASE_CMD_SUBCOMMANDS as BASE_SUBCOMMANDS, BASE_TYPES,
+                       CTRL_REQUESTS, OK_COUNTED_HEAD, OK_SIZES, EVENTS, EXTERNAL_COMMANDS, HEALTH_COMPONENTS,
+                       HEALTH_FLAGS_BITS as HEALTH_BITS, HEALTH_LEVELS, HEALTH_SUBS,
+                       MOTOR_STATUS_BITS as MOTION_BITS, MOTOR_TYPES,
+                       POWER_STATUS_BITS as POWER_BITS, REQUEST_ARGS, RESPONSES, TOP_REQUESTS)
+
 ERROR_MEANINGS = {
     0x0010: 'channel not synchronised', 0x0020: 'request too long',
     0x0040: 'checksum mismatch', 0x00C0: 'checksum mismatch, reference form',
@@ -52,22 +35,10 @@ ERROR_MEANINGS = {
 # ERROR codes below this answer bytes on the line (the receiver's state bits, the reference's
 # combined codes such as 0x0090 included), not a request: they pair with nothing.
 LINE_FAULT_LIMIT = 0x0100
-POWER_BITS = ((0x01, 'charging'), (0x02, 'DC connected'), (0x04, 'on the dock'))
-MOTION_BITS = ((0x02, 'wheel stall'), (0x04, 'traction lost'))
-HEALTH_BITS = ((0x01, 'warning'), (0x02, 'error'), (0x04, 'fatal'))
-HEALTH_LEVELS = {1: 'warning', 2: 'error', 4: 'fatal'}
-HEALTH_COMPONENTS = {0: 'user', 1: 'system', 2: 'power', 3: 'motion', 4: 'sensor'}
-BASE_TYPES = {0: 'round', 1: 'square'}
-MOTOR_TYPES = {0: 'two-wheel differential'}
 # Unit suffixes of field names (after _q8 / _q16), longest first.
 UNITS = (('_mm_s', 'mm/s'), ('_radps', 'rad/s'), ('_mps', 'm/s'), ('_percent', '%'),
          ('_deg', 'deg'), ('_mm', 'mm'), ('_ms', 'ms'))
 FIXED = (('_q16', 16), ('_q8', 8))
-NO_ARGUMENT = ('GET_BASE_CONF', 'GET_BASE_CONF_ADV', 'GET_BASE_STATUS', 'GET_BASE_MOTOR_DATA',
-               'GET_BASE_SENSOR_DATA', 'GET_BASE_BUMPER_DATA', 'GET_AUXILIARY_ANCHOR',
-               'POLL_BASE_CMD', 'POLL_BASE_ANS_CMD')
-EMPTY_OK = ('SET_BASE_MOTOR', 'POLL_BASE_ANS_CMD', 'SEND_EVENT', 'HEALTH_CLR_ERROR', 'BASE_CMD')
-
 
 class FormatError(Exception):
     '''The payload does not have the layout of its message.'''
@@ -149,33 +120,42 @@ def request_fields(cmd, payload):
     elif name is None:
         raise Unsupported('request code 0x%02X' % payload[0])
     read.at = 2 if payload[0] == 0x90 else 1
-    if name in NO_ARGUMENT or name == 'HEALTH_GET_HEALTH':
-        read.need(read.at)
-        return []
-    if name == 'CONNECT_BASE':
-        read.need(2)
-        if payload[1] != 1:
-            raise Unsupported('protocol version %d' % payload[1])
-        return [('protocol_version', 1)]
-    if name == 'GET_CHARGER_DATA':
-        read.need(2)
-        if payload[1] != 0:
-            raise Unsupported('charger data type %d' % payload[1])
-        return [('data_type', 0)]
-    if name == 'SET_BASE_MOTOR':
-        read.need(17)
-        return [('speeds_mm_s', [read.int(4, True) for _ in range(4)])]
-    if name == 'SET_V_AND_GET_DEADRECKON':
-        read.need(13)
-        return [(key, read.int(4, True)) for key in ('vx_mps_q16', 'vy_mps_q16', 'omega_radps_q16')]
-    if name == 'SEND_EVENT':
-        read.need(2)
-        return [('event', payload[1])]
-    if name == 'HEALTH_GET_ERROR':
-        read.need(3)
-        return [('index', payload[2])]
-    read.need(6)  # HEALTH_CLR_ERROR
-    return [('error_code', read.int(4))]
+    fields = read_fields(read, REQUEST_ARGS[name], read.at)
+    # values the request codec refuses (messages.py): another protocol version, another data type
+    if name == 'CONNECT_BASE' and payload[1] != 1:
+        raise Unsupported('protocol version %d' % payload[1])
+    if name == 'GET_CHARGER_DATA' and payload[1] != 0:
+        raise Unsupported('charger data type %d' % payload[1])
+    return fields
+
+
+def read_fields(read, specs, head=0, sizes=None):
+    '''[(field, value)] of fields laid out as the description says (protocol.py), after `head`
+    bytes; the payload's size checked first: one of `sizes`, else exactly the fields.'''
+    fixed = sum(spec['size'] * spec.get('count', 1) for spec in specs if spec['type'] != 'position')
+    fixed += sum(16 * spec['count'] for spec in specs if spec['type'] == 'position')
+    read.need(*(sizes or (head + fixed,)))
+    fields = []
+    for spec in specs:
+        name, kind, count = spec['name'], spec['type'], spec.get('count')
+        if spec.get('optional') and read.at >= len(read.data):
+            value = None
+        elif kind == 'text':
+            value = read.text(count, nul_required=spec.get('nul_in_field', False))
+        elif kind == 'position':
+            value = [position(read) for _ in range(count)]
+        elif kind == 'bytes':  # a list of counted bytes (probes), else bytes (the blob)
+            value = list(read.rest()) if 'count_field' in spec else bytes(read.rest())
+        elif spec.get('truncatable'):
+            value = read.int(min(spec['size'], len(read.data) - read.at))
+        elif count is not None:
+            value = [read.int(spec['size'], kind == 's32') for _ in range(count)]
+        else:
+            value = read.int(spec['size'], kind == 's32')
+        if spec.get('max_is_format_error') and value > spec['max']:
+            raise FormatError('%s: %s above %d' % (read.what, name, spec['max']))
+        fields.append((name, value))
+    return fields
 
 
 def position(read):
@@ -186,63 +166,29 @@ def position(read):
 def ok_fields(to, payload):
     '''[(field, value)] of an OK answer to the request named `to`.'''
     read = Reader(payload, to + ' answer')
-    if to in EMPTY_OK:
-        read.need(0)
-        return []
-    if to == 'CONNECT_BASE':
-        read.need(28, 39)
-        fields = [('model', read.text(12)), ('firmware_version', read.int(2)),
-                  ('hardware_version', read.int(2)), ('serial', [read.int(4) for _ in range(3)])]
-        suffix = read.text(11) if len(payload) == 39 else None
-        return fields + [('firmware_version_suffix', suffix)]
-    if to == 'GET_BASE_CONF':
-        read.need(264)
-        fields = [('base_type', read.int(1)), ('base_radius_mm_q8', read.int(4)),
-                  ('motor_type', read.int(1)), ('sensor_num', read.int(1))]
-        fields.append(('sensors', [position(read) for _ in range(8)]))
-        fields.append(('bumper_num', read.int(1)))
-        fields.append(('bumpers', [position(read) for _ in range(8)]))
-        if fields[3][1] > 8 or fields[5][1] > 8:
-            raise FormatError('GET_BASE_CONF answer: more than 8 sensors or bumpers')
-        return fields
-    if to == 'GET_BASE_CONF_ADV':
-        return [('blob', bytes(payload))]
-    if to == 'GET_BASE_STATUS':
-        read.need(2)
-        return [('battery_percent', payload[0]), ('power_status', payload[1])]
-    if to == 'GET_BASE_MOTOR_DATA':
-        read.need(9)
-        return [('left_distance_mm', read.int(4, True)), ('right_distance_mm', read.int(4, True)),
-                ('status', read.int(1))]
-    if to == 'GET_BASE_SENSOR_DATA':
-        read.need(64)
-        return [('distances_mm_q16', [read.int(4) for _ in range(16)])]
-    if to == 'GET_BASE_BUMPER_DATA':
-        read.need(1, 2, 3, 4)
-        return [('bitmap', read.int(len(payload))), ('payload_size', len(payload))]
-    if to == 'GET_CHARGER_DATA':
-        if len(payload) < 2 or len(payload) != 2 + payload[1]:
-            raise FormatError('GET_CHARGER_DATA answer: %d payload bytes' % len(payload))
-        return [('beacon_count', payload[0]), ('probe_count', payload[1]),
-                ('probes', list(payload[2:]))]
-    if to == 'SET_V_AND_GET_DEADRECKON':
-        read.need(13, 17)
-        fields = [(key, read.int(4, True)) for key in ('dx_mm_q16', 'dy_mm_q16', 'dtheta_deg_q16')]
-        fields.append(('status', read.int(1)))
-        return fields + [('timestamp_ms', read.int(4) if len(payload) == 17 else None)]
     if to == 'POLL_BASE_CMD':
         read.need(0, 2)
         if not payload:
             return [('command', None), ('payload_size', 0), ('pad', 0)]
         command = None if payload[0] == 0xFF else payload[0]
         return [('command', command), ('payload_size', 2), ('pad', payload[1])]
-    if to == 'HEALTH_GET_HEALTH':
-        read.need(2)
-        return [('flags', payload[0]), ('error_count', payload[1])]
-    if to == 'HEALTH_GET_ERROR':
-        read.need(36)
-        return [('error_code', read.int(4)), ('message', read.text(32, nul_required=True))]
-    raise Unsupported('no OK answer is defined for %s' % to)
+    layout = ANSWERS.get(to)
+    if layout is None:
+        raise Unsupported('no OK answer is defined for %s' % to)
+    if 'count_at' in layout:  # a bytes field as long as the count before it says
+        if len(payload) < layout['min'] or len(payload) != layout['min'] + payload[layout['count_at']]:
+            raise FormatError('%s answer: %d payload bytes' % (to, len(payload)))
+        sizes = (len(payload),)
+    elif 'max' in layout:
+        sizes = tuple(range(layout['min'], layout['max'] + 1))
+    elif 'min' in layout:
+        sizes = (len(payload),)
+    else:
+        sizes = layout['sizes']
+    fields = read_fields(read, layout['fields'], sizes=sizes)
+    if 'size_field' in layout:
+        fields.append((layout['size_field'], len(payload)))
+    return fields
 
 
 # Value sizes of the 0x21 configuration tree's fixed-size types (the reference's type table).
@@ -293,27 +239,21 @@ OK_ANSWERS = ('BASE_CMD', 'CONNECT_BASE', 'GET_BASE_CONF', 'GET_BASE_CONF_ADV', 
 
 # Pairing by order, timing and size, as `ctrlbus decode` (ctrlbus.annotate): the requests waiting
 # are the last PAIR_DEPTH ones, none older than PAIR_WINDOW_S; an answer goes to the newest one it
-# fits, and that one and every older one stop waiting. OK payload sizes per request:
+# fits, and that one and every older one stop waiting. OK payload sizes per request: OK_SIZES
+# (protocol.py).
 PAIR_DEPTH = 4
 PAIR_WINDOW_S = 1.0
-OK_SIZES = {
-    'CONNECT_BASE': (28, 39), 'GET_BASE_CONF': (264,), 'GET_BASE_CONF_ADV': 'blob',
-    'GET_BASE_STATUS': (2,), 'GET_BASE_MOTOR_DATA': (9,), 'GET_BASE_SENSOR_DATA': (64,),
-    'GET_BASE_BUMPER_DATA': (1, 2, 3, 4), 'GET_CHARGER_DATA': 'charger',
-    'SET_V_AND_GET_DEADRECKON': (13, 17), 'POLL_BASE_CMD': (0, 2), 'HEALTH_GET_HEALTH': (2,),
-    'HEALTH_GET_ERROR': (36,), 'SET_BASE_MOTOR': (0,), 'POLL_BASE_ANS_CMD': (0,), 'SEND_EVENT': (0,),
-    'HEALTH_CLR_ERROR': (0,), 'BASE_CMD': (0,),
-}
 
 
 def ok_size_fits(name, payload):
     sizes = OK_SIZES.get(name or '')
     if sizes is None:
         return True
-    if sizes == 'blob':
+    if sizes == 'any':
         return True
-    if sizes == 'charger':
-        return len(payload) >= 2 and len(payload) == 2 + payload[1]
+    if sizes == 'counted':
+        head = OK_COUNTED_HEAD[name]
+        return len(payload) >= head and len(payload) == head + payload[head - 1]
     return len(payload) in sizes
 
 

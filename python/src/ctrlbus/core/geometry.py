@@ -14,6 +14,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
+from ctrlbus import protocol_tables
 from ctrlbus.binconf import JsonValue
 from ctrlbus.messages import GetBaseConfAnswer, Position
 
@@ -37,8 +38,9 @@ SOURCE_CONF = "GET_BASE_CONF"
 SOURCE_CONF_ADV = "GET_BASE_CONF_ADV"
 BUMPER_BITS = 32
 SENSOR_SLOTS = 16
-# The reference puts its cliff sensors in the 4 bits after the bumpers (protocol §5.7).
-REFERENCE_CLIFF_BITS = 4
+# The reference puts its cliff sensors in the 4 bits after the bumpers (protocol §5.7): the
+# description's bumper_bitmap groups (protocol/ctrlbus.json).
+REFERENCE_CLIFF_BITS = len(protocol_tables.REFERENCE_CLIFFS_BITS)
 # Configuration-tree sensor types that are not distance sensors.
 NOT_DISTANCE_TYPES = frozenset({"bumper", "cliff"})
 
