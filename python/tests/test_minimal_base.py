@@ -58,8 +58,7 @@ def test_minimal_base_passes_the_checker_on_a_pty(tmp_path: Path) -> None:
         # The minimal base writes its answers a byte at a time, as on an MCU: a busy host can
         # pause it mid-answer for longer than the checker decoder's 100 ms (232 ms seen under
         # stress-ng), so the emulators' margin.
-        assert_checker_passes(
-            line.removeprefix("pty: "), tmp_path / "report.json", base.describe, ("--interbyte-timeout-ms", "500")
-        )
+        margin = ("--interbyte-timeout-ms", "500")
+        assert_checker_passes(line.removeprefix("pty: "), tmp_path / "report.json", base.describe, margin)
     finally:
         base.stop()
