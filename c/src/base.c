@@ -960,8 +960,9 @@ void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
             if (!ctrlbus_decoder_busy(&base->decoder)) {
                 return; /* nothing held that could time out, nothing waiting to be answered */
             }
-            /* The ring is done: the inter-byte timeout, then whatever it leaves to answer. */
-            ctrlbus_decoder_tick(&base->decoder, now_ms);
+            /* The ring is done: the inter-byte timeout (a feed of no bytes: what tick() does,
+             * without linking it beside feed()), then whatever it leaves to answer. */
+            (void)ctrlbus_decoder_feed(&base->decoder, NULL, 0u, now_ms);
             rx = ctrlbus_decoder_next(&base->decoder, &frame);
         } else {
             /* The run of bytes up to head or the ring's end. */
