@@ -949,26 +949,23 @@ void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
     CTRLBUS_RING_FENCE(); /* the bytes up to head are read only after head is */
     ctrlbus_frame_t frame;
     /* Each turn handles the ring's bytes from rx_tail (which only poll writes: no copy is kept,
-     * which keeps poll's frame small), and the last one, with the ring done, the inter-byte
-     * timeout. */
+     * which keeps poll's frame small); a poll that finds the ring empty takes one turn of no
+     * bytes instead, for the inter-byte timeout. */
     for (;;) {
         const ctrlbus_base_config_t *config = base->config;
         uint16_t tail = base->rx_tail;
-        ctrlbus_rx_t rx;
         size_t used = 0;
         if (tail == head) {
             if (!ctrlbus_decoder_busy(&base->decoder)) {
                 return; /* nothing held that could time out, nothing waiting to be answered */
             }
-            /* The ring is done: the inter-byte timeout (a feed of no bytes: what tick() does,
-             * without linking it beside feed()), then whatever it leaves to answer. */
-            (void)ctrlbus_decoder_feed(&base->decoder, NULL, 0u, now_ms);
-            rx = ctrlbus_decoder_next(&base->decoder, &frame);
+            /* The ring is done: a feed of no bytes applies the inter-byte timeout (what tick()
+             * does, without linking it beside feed()), then whatever it leaves is answered. */
         } else {
             /* The run of bytes up to head or the ring's end. */
             used = (size_t)((head > tail ? head : config->rx_ring_size) - tail);
-            rx = feed_run(base, &used, now_ms, &frame);
         }
+        ctrlbus_rx_t rx = feed_run(base, &used, now_ms, &frame);
         /* The results are answered before their bytes' slots are released. */
         unsigned results = drain(base, now_ms, rx, &frame);
         if (base->flags & FLAG_REBOOTED) {
@@ -985,12 +982,13 @@ void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
             CTRLBUS_RING_FENCE(); /* done with those bytes before feed may reuse their slots */
             base->rx_tail = tail;
         }
-        /* The timeout's turn (nothing used, the ring done) is the last. */
-        if (used == 0u && tail == head) {
+        /* The ring done, so is the poll: after bytes, the decoder's last byte came at now_ms, so
+         * no timeout can be due (a turn of no bytes is for a poll that finds the ring empty). */
+        if (tail == head) {
             return;
         }
         if (used == 0u && results == 0u) {
-            head = tail; /* cannot happen with a valid decoder; never spin: tick next */
+            head = tail; /* cannot happen with a valid decoder; never spin: the timeout's turn */
         }
     }
 }
