@@ -915,10 +915,9 @@ static NOINLINE void answer(ctrlbus_base_t *base, ctrlbus_rx_t rx, const ctrlbus
 
 /* Feeds the decoder the *run ring bytes from rx_tail on (0: none, which applies the inter-byte
  * timeout at now_ms), up to the first result, which it returns (NONE: none), and sets *run to the
- * bytes it took. A feed appends the bytes of a frame whose size
- * is known in one run and checks them once, when the frame is complete; the base links neither
- * push() nor take(). Out of line: its locals are not on the stack while the answers are
- * written. */
+ * bytes it took. A feed appends the bytes of a frame whose size is known in one run and checks
+ * them once, when the frame is complete; the base links neither push() nor take(). Out of line:
+ * its locals are not on the stack while the answers are written. */
 static NOINLINE ctrlbus_rx_t feed_run(ctrlbus_base_t *base, size_t *run, uint32_t now_ms,
                                       ctrlbus_frame_t *frame)
 {
