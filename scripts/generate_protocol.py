@@ -17,6 +17,7 @@ The description is reviewed by hand; this script never reads an implementation.
 from __future__ import annotations
 
 import argparse
+import ast
 import json
 import re
 import sys
@@ -804,7 +805,7 @@ def python_tables(desc: Description) -> str:
     out = [
         "# SPDX-License-Identifier: MIT",
         f"# {GENERATED_NOTE}",
-        "# ruff: noqa: E501",
+        "# ruff: noqa: E501, RUF022",  # __all__ in the description's order
         '"""The protocol description\'s tables for Python (docs/protocol.md): answer fields, bit meanings,',
         "error and health codes. ctrlbus.messages builds its answer classes on the *AnswerFields",
         "classes; the Core, the dashboard, decode and the checker read bit meanings from here.",
@@ -875,7 +876,22 @@ def python_tables(desc: Description) -> str:
         py_fields_class(m, desc) for m in desc.messages if m.answer is not None and not m.answer.custom
     ]
     out.append("\n\n\n".join(classes))
-    return "\n".join(out) + "\n"
+    text = "\n".join(out) + "\n"
+    return text + "\n\n" + python_all(text)
+
+
+def python_all(module_text: str) -> str:
+    """`__all__` naming every public name the generated module defines (its imports are not its own)."""
+    names: list[str] = []
+    for node in ast.parse(module_text).body:
+        if isinstance(node, ast.ClassDef):
+            names.append(node.name)
+        elif isinstance(node, (ast.Assign, ast.AnnAssign)):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            names += [t.id for t in targets if isinstance(t, ast.Name)]
+    public = [name for name in names if not name.startswith("_")]
+    body = "".join(f"    {q(name)},\n" for name in public)
+    return f"__all__ = [\n{body}]\n"
 
 
 # --- Wireshark (Lua) and sigrok (Python) tables --------------------------------------------------

@@ -913,24 +913,11 @@ static NOINLINE void answer(ctrlbus_base_t *base, ctrlbus_rx_t rx, const ctrlbus
     }
 }
 
-/* Answers `rx` (a result next() returned, with *frame; NONE for none), then every result the
- * decoder has ready (into *frame). Returns how many there were. */
-static inline unsigned drain(ctrlbus_base_t *base, uint32_t now_ms, ctrlbus_rx_t rx,
-                      ctrlbus_frame_t *frame)
-{
-    unsigned results = 0;
-    for (; rx != CTRLBUS_RX_NONE; rx = ctrlbus_decoder_next(&base->decoder, frame)) {
-        results++;
-        answer(base, rx, frame, now_ms);
-    }
-    return results;
-}
-
-/* Feeds the decoder the *run ring bytes from rx_tail on, up to the first result, which it returns
- * (NONE: none), and sets *run to the bytes it took. A feed appends the bytes of a frame whose size
- * is known in one run and checks them once, when the frame is complete; the base links neither
- * push() nor take(). Out of line: its locals are not on the stack while the answers are
- * written. */
+/* Feeds the decoder the *run ring bytes from rx_tail on (0: none, which applies the inter-byte
+ * timeout at now_ms), up to the first result, which it returns (NONE: none), and sets *run to the
+ * bytes it took. A feed appends the bytes of a frame whose size is known in one run and checks
+ * them once, when the frame is complete; the base links neither push() nor take(). Out of line:
+ * its locals are not on the stack while the answers are written. */
 static NOINLINE ctrlbus_rx_t feed_run(ctrlbus_base_t *base, size_t *run, uint32_t now_ms,
                                       ctrlbus_frame_t *frame)
 {
@@ -949,47 +936,43 @@ void ctrlbus_base_poll(ctrlbus_base_t *base, uint32_t now_ms)
     CTRLBUS_RING_FENCE(); /* the bytes up to head are read only after head is */
     ctrlbus_frame_t frame;
     /* Each turn handles the ring's bytes from rx_tail (which only poll writes: no copy is kept,
-     * which keeps poll's frame small), and the last one, with the ring done, the inter-byte
-     * timeout. */
+     * which keeps poll's frame small); a poll that finds the ring empty takes one turn of no
+     * bytes instead, for the inter-byte timeout. */
     for (;;) {
         const ctrlbus_base_config_t *config = base->config;
         uint16_t tail = base->rx_tail;
-        ctrlbus_rx_t rx;
+        /* The run of bytes up to head or the ring's end; none when the ring is done: a feed of no
+         * bytes then applies the inter-byte timeout (what tick() does, without linking it beside
+         * feed()), and whatever it leaves is answered. */
         size_t used = 0;
-        if (tail == head) {
-            if (!ctrlbus_decoder_busy(&base->decoder)) {
-                return; /* nothing held that could time out, nothing waiting to be answered */
-            }
-            /* The ring is done: the inter-byte timeout, then whatever it leaves to answer. */
-            ctrlbus_decoder_tick(&base->decoder, now_ms);
-            rx = ctrlbus_decoder_next(&base->decoder, &frame);
-        } else {
-            /* The run of bytes up to head or the ring's end. */
+        if (tail != head) {
             used = (size_t)((head > tail ? head : config->rx_ring_size) - tail);
-            rx = feed_run(base, &used, now_ms, &frame);
         }
-        /* The results are answered before their bytes' slots are released. */
-        unsigned results = drain(base, now_ms, rx, &frame);
+        ctrlbus_rx_t rx = feed_run(base, &used, now_ms, &frame);
+        /* The results (rx, then every one the decoder has ready) are answered before their
+         * bytes' slots are released. */
+        bool found = rx != CTRLBUS_RX_NONE;
+        for (; rx != CTRLBUS_RX_NONE; rx = ctrlbus_decoder_next(&base->decoder, &frame)) {
+            answer(base, rx, &frame, now_ms);
+        }
         if (base->flags & FLAG_REBOOTED) {
             /* A reboot handler returned: restart() dropped the ring's bytes, the answered ones
              * included, and what was received before the reset is not heard. */
             clear_flags(base, FLAG_REBOOTED);
             return;
         }
-        if (used != 0u) {
-            tail = (uint16_t)(tail + used);
-            if (tail == config->rx_ring_size) {
-                tail = 0;
-            }
-            CTRLBUS_RING_FENCE(); /* done with those bytes before feed may reuse their slots */
-            base->rx_tail = tail;
+        tail = (uint16_t)(tail + used);
+        if (tail == config->rx_ring_size) {
+            tail = 0;
         }
-        /* The timeout's turn (nothing used, the ring done) is the last. */
-        if (used == 0u && tail == head) {
+        CTRLBUS_RING_FENCE(); /* done with those bytes before feed may reuse their slots */
+        base->rx_tail = tail;
+        /* The ring done, so is the poll: after bytes, the decoder's last byte came at now_ms, so
+         * no timeout can be due (a turn of no bytes is for a poll that finds the ring empty). A
+         * turn that took no byte and found nothing (impossible with a valid decoder) would find
+         * nothing again: no spinning. */
+        if (tail == head || (used == 0u && !found)) {
             return;
-        }
-        if (used == 0u && results == 0u) {
-            head = tail; /* cannot happen with a valid decoder; never spin: tick next */
         }
     }
 }

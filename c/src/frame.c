@@ -666,7 +666,8 @@ size_t ctrlbus_decoder_feed(ctrlbus_decoder_t *decoder, const uint8_t *data, siz
     return len;
 }
 
-/* (Not a feed of no bytes, so that a base linking push, next and tick leaves feed out.) */
+/* (Not a feed of no bytes, so that a program linking push, next and tick leaves feed out; the
+ * base stack, which links feed, takes the timeout with a feed of no bytes instead.) */
 void ctrlbus_decoder_tick(ctrlbus_decoder_t *decoder, uint32_t now_ms)
 {
     if (decoder != NULL && decoder->buffer != NULL) {
