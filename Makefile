@@ -92,14 +92,15 @@ check: setup
 	@$(MAKE) --no-print-directory lint
 	@cd python && HYPOTHESIS_PROFILE=dev ../$(VENV)/bin/pytest -q -n $(PYTEST_JOBS) -m "not slow and not external"
 
-# The proof that no test depends on the host's scheduling: the emulator, checker, firmware and CLI
-# tests STRESS_RUNS times in a row while stress-ng keeps both cores busy; prints the count of
+# The proof that no test depends on the host's scheduling: the emulator, checker, firmware, CLI
+# and ROS 2 bridge (DDS) tests STRESS_RUNS times in a row while stress-ng keeps both cores busy; prints the count of
 # failed runs and the time. 0 failed runs is the bar.
 STRESS_RUNS ?= 20
 STRESS_TESTS ?= tests/test_mcu_ports.py tests/test_firmware.py tests/test_minimal_base.py \
   tests/test_served_bases.py tests/test_hostile_link.py tests/test_posix_base.py tests/test_checker.py \
   tests/test_quirks.py tests/test_vtime.py tests/test_cli.py tests/test_cli_face.py tests/test_core_cli.py \
-  tests/test_sim_cli.py
+  tests/test_sim_cli.py tests/test_ros2_bridge.py tests/test_ros2_cli.py tests/test_ros2_loopback.py \
+  tests/test_ros2_record.py
 test-stress: setup c-build ports
 	@command -v stress-ng >/dev/null || { echo "test-stress: stress-ng is missing (scripts/setup.sh full)"; exit 1; }
 	@mkdir -p $(BUILD)/stress; stress-ng --cpu 2 --quiet & stress=$$!; \
