@@ -144,6 +144,10 @@ class Node:
         if writer is None:
             topic = Topic(self.participant, dds_name, type(message), qos=qos_for(qos))
             writer = self._writers[dds_name] = DataWriter(self.participant, topic, qos=qos_for(qos))
+            # A sample written before discovery has matched the bridge's reader is lost (volatile
+            # durability), so the first publish on a topic waits until discovery has matched it.
+            new_writer = writer
+            wait_for(f"the bridge's reader of {dds_name}", lambda: new_writer.get_matched_subscriptions())
         writer.write(message)
 
     def subscribe_all(self, distro: str = "jazzy") -> None:
