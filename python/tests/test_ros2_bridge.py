@@ -306,6 +306,15 @@ def test_namespace_stamped_humble_and_the_commands(sim, tmp_path: Path) -> None:
         node.publish("rt/robot1/cmd_vel", stamped(0.0))
         wait_for("stopped", lambda: world.wheel_speeds == (0.0, 0.0))
 
+        # The Core's pose takes the last of the motion from the next dead-reckoning answer, after
+        # the wheels stopped: the reset is asked for once odom has stood still for a while.
+        def odom_at_rest() -> bool:
+            recent = [(m.pose.pose.position.x, m.pose.pose.position.y) for m in odom[-5:]]
+            return len(recent) == 5 and len(set(recent)) == 1
+
+        odom_count = len(odom)
+        wait_for("odometry at rest", lambda: len(odom) >= odom_count + 5 and odom_at_rest())
+
         # reset_odometry: the odom frame starts again where the robot is
         node.publish("rt/robot1/reset_odometry", msgs.Empty())
         wait_for(
