@@ -13,10 +13,11 @@ under `-m "not external"` (conftest.py) and fail in `make test`, which installs 
 
 from __future__ import annotations
 
-import itertools
+import fcntl
 import math
 import os
 import sys
+import tempfile
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import fields, is_dataclass
@@ -59,14 +60,31 @@ __all__ = [
 ]
 
 WAIT_S = 20.0  # generous: discovery and a busy 2-core machine
-_domains = itertools.count()
 T = TypeVar("T")
+DOMAIN_IDS = 101  # 1..101: their ports stay below Linux's ephemeral range, as ROS 2 advises
+_held_domains: list[int] = []  # lock files of the domain ids this process took, open until it ends
 
 
 def unique_domain() -> int:
-    """A domain id of this test run alone (1..101: their ports stay below Linux's ephemeral range,
-    as ROS 2 advises), so that other runs on the machine do not meet it."""
-    return 1 + (os.getpid() * 7 + next(_domains)) % 101
+    """A DDS domain id no other test process on this machine holds, nor this one before: each id
+    is taken with an exclusive lock on a file of its own, held until the process ends, so that
+    parallel workers and runs never meet on a domain (a shared one mixes their topics)."""
+    start = os.getpid() % DOMAIN_IDS
+    for step in range(DOMAIN_IDS):
+        domain = 1 + (start + step) % DOMAIN_IDS
+        lock = os.open(
+            os.path.join(tempfile.gettempdir(), f"ctrlbus-dds-domain-{domain}.lock"),
+            os.O_CREAT | os.O_RDWR,
+            0o600,
+        )
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(lock)
+            continue
+        _held_domains.append(lock)
+        return domain
+    raise RuntimeError(f"every DDS domain id 1..{DOMAIN_IDS} is held by other test processes")
 
 
 def wait_for(what: str, check: Callable[[], T | None], limit_s: float = WAIT_S) -> T:
