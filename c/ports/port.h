@@ -1,7 +1,8 @@
 /* SPDX-License-Identifier: MIT */
-/* What a port is: the five things the minimal base (c/examples/minimal_base/minimal_base.c) needs
+/* What a port is: the six things the minimal base (c/examples/minimal_base/minimal_base.c) needs
  * from a board. Each c/ports/<board>/port.c implements the first four; the application implements
- * port_uart_received(), which the board's UART receive path calls with every byte.
+ * port_uart_received(), which the board's UART receive path calls with every byte, and
+ * port_uart_room(), which that path asks first.
  *
  * A port owns the hardware: clocks, the UART (115200 8N1), a millisecond clock, interrupts. It
  * knows nothing of the protocol. The application owns the protocol and knows nothing of the
@@ -33,5 +34,15 @@ void port_reset(void);
 /* Implemented by the application: one received byte, called from the UART receive interrupt (or
  * from port_idle() on a port that polls its UART). */
 void port_uart_received(uint8_t byte);
+
+/* Implemented by the application: how many more received bytes it can take now (ISR-safe). The
+ * receive path takes a byte from the UART only while this is above 0. At 0 it leaves the bytes in
+ * the UART, masks its receive interrupt, and takes them in port_idle(), after the main loop has
+ * polled. Why: under QEMU a UART model takes the host's bytes as fast as the guest reads them, not
+ * at wire pace, so an emulated CPU that the host starves can meet a burst far larger than its ring;
+ * held in the UART, the bytes hold the host back instead of being dropped. On a chip, where bytes
+ * come at wire pace, the ring is seldom full; when it is, the UART's FIFO keeps a few more bytes
+ * before it overruns. */
+size_t port_uart_room(void);
 
 #endif

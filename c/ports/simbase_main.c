@@ -32,6 +32,11 @@ void port_uart_received(uint8_t byte)
     base_glue_feed(&glue, &byte, 1);
 }
 
+size_t port_uart_room(void)
+{
+    return base_glue_rx_free(&glue);
+}
+
 #ifdef PORT_HAS_RESET
 static void reboot(void *context)
 {

@@ -32,6 +32,11 @@ void port_uart_received(uint8_t byte)
     r->head = head + 1u;
 }
 
+size_t port_uart_room(void)
+{
+    return ECHO_RING_SIZE - (size_t)(ring.head - ring.tail);
+}
+
 int main(void)
 {
     port_init();

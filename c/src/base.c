@@ -97,6 +97,17 @@ bool ctrlbus_base_feed_byte(ctrlbus_base_t *base, uint8_t byte)
     return true;
 }
 
+size_t ctrlbus_base_rx_free(const ctrlbus_base_t *base)
+{
+    if (base == NULL || base->config == NULL) {
+        return 0u;
+    }
+    /* One slot stays empty, so that a full ring is told from an empty one (head == tail). */
+    uint16_t head = base->rx_head, tail = base->rx_tail;
+    uint16_t used = (uint16_t)(head >= tail ? head - tail : base->config->rx_ring_size - tail + head);
+    return (size_t)(base->config->rx_ring_size - 1u - used);
+}
+
 size_t ctrlbus_base_feed(ctrlbus_base_t *base, const uint8_t *data, size_t len)
 {
     size_t taken = 0;

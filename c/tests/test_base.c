@@ -1649,6 +1649,42 @@ static void test_feed_byte_fills_the_ring_and_counts_drops(void)
     expect_nothing_more();
 }
 
+/* rx_free() says what feed would take, before and after the ring's indexes wrap: a producer that
+ * takes bytes only while it is above 0 never sees one dropped. */
+static void test_rx_free_counts_the_room_left(void)
+{
+    setup();
+    static uint8_t small_ring[8];
+    config.rx_ring = small_ring;
+    config.rx_ring_size = sizeof small_ring;
+    start();
+    CHECK_EQ(ctrlbus_base_rx_free(&base), 7);
+    static const uint8_t request[] = {0x10, 0x02, 0xF8, 0x30, 0xDA};
+    for (size_t i = 0; i < sizeof request; i++) {
+        CHECK(ctrlbus_base_feed_byte(&base, request[i]));
+        CHECK_EQ(ctrlbus_base_rx_free(&base), 6 - i);
+    }
+    ctrlbus_base_poll(&base, now);
+    expect_ok(2);
+    CHECK_EQ(ctrlbus_base_rx_free(&base), 7);
+    for (size_t i = 0; i < 2 * sizeof request; i++) { /* head wraps past the ring's end */
+        if (ctrlbus_base_rx_free(&base) == 0) {
+            ctrlbus_base_poll(&base, now);
+            expect_ok(2);
+            CHECK_EQ(ctrlbus_base_rx_free(&base), 7);
+        }
+        CHECK(ctrlbus_base_feed_byte(&base, request[i % sizeof request]));
+    }
+    CHECK_EQ(ctrlbus_base_rx_free(&base), 4); /* 10 bytes: 7 before the poll above, 3 after */
+    ctrlbus_base_poll(&base, now);
+    expect_ok(2);
+    expect_nothing_more();
+    ctrlbus_base_counters_t counters;
+    ctrlbus_base_counters(&base, &counters);
+    CHECK_EQ(counters.rx_dropped, 0);
+    CHECK_EQ(ctrlbus_base_rx_free(NULL), 0);
+}
+
 /* The stream an "interrupt" plays into the base: requests of every shape, answers predictable. */
 #define STREAM_REQUESTS 3000
 static uint8_t stream[STREAM_REQUESTS * 40];
@@ -1948,6 +1984,7 @@ int main(void)
     RUN(test_compiled_out_features_answer_and_fail_clearly);
     RUN(test_ring_overflow_drops_and_counts);
     RUN(test_feed_byte_fills_the_ring_and_counts_drops);
+    RUN(test_rx_free_counts_the_room_left);
     RUN(test_interrupt_feeding_inside_the_poll_loses_nothing);
     RUN(test_thread_feeding_while_polling_loses_nothing);
     RUN(test_invalid_json_base_answers);

@@ -58,7 +58,12 @@ void port_idle(void)
     if (posix_link_wait(&pty_link, IDLE_MS) < 0) {
         return; /* a signal; the next call waits again */
     }
-    long got = posix_link_read(&pty_link, received, sizeof received);
+    /* No more than the ring takes: the rest waits in the pty for the next turn. */
+    size_t room = port_uart_room();
+    if (room == 0u) {
+        return; /* (a read of 0 bytes would look like a hang-up) */
+    }
+    long got = posix_link_read(&pty_link, received, room < sizeof received ? room : sizeof received);
     for (long i = 0; i < got; i++) {
         port_uart_received(received[i]);
     }

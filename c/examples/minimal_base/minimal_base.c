@@ -3,7 +3,7 @@
  * of the SLAMWARE Control Bus (docs/protocol.md §5) with constants and a robot that exists only as
  * two wheel odometers, enough to make motion commands and the motor watchdog observable.
  * The board is behind c/ports/port.h, and the UART touches this file in two functions only,
- * uart_write() and port_uart_received(): the same file runs on a host (host_port.c, a pty) and on
+ * uart_write(), port_uart_received() and port_uart_room(): the same file runs on a host (host_port.c, a pty) and on
  * every board of c/ports/. What the stack does by itself (error answers, validation, watchdog,
  * inter-byte timeout, SYNC/ECHO, POLL_BASE_CMD, HEALTH_MGMT) is listed in ctrlbus/base.h. */
 #include <stdint.h>
@@ -149,7 +149,7 @@ static int32_t set_velocity(void *context, const ctrlbus_set_v_and_get_deadrecko
     return CTRLBUS_OK;
 }
 
-/* ---- the UART glue: the only two functions that touch the link ------------------------------- */
+/* ---- the UART glue: the only functions that touch the link ---------------------------------- */
 
 static int32_t uart_write(void *context, const uint8_t *data, size_t size)
 {
@@ -161,6 +161,11 @@ static int32_t uart_write(void *context, const uint8_t *data, size_t size)
 void port_uart_received(uint8_t byte) /* the UART receive interrupt */
 {
     (void)ctrlbus_base_feed_byte(&base, byte); /* a full ring drops the byte and counts it */
+}
+
+size_t port_uart_room(void) /* asked first: the port leaves a byte in the UART rather than drop it */
+{
+    return ctrlbus_base_rx_free(&base);
 }
 
 /* ---- start-up and the main loop ------------------------------------------------------------- */

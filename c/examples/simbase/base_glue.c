@@ -182,6 +182,11 @@ void base_glue_feed(base_glue_t *glue, const uint8_t *data, size_t size)
     (void)ctrlbus_base_feed(&glue->base, data, size);
 }
 
+size_t base_glue_rx_free(const base_glue_t *glue)
+{
+    return ctrlbus_base_rx_free(&glue->base);
+}
+
 void base_glue_new_line(base_glue_t *glue)
 {
     ctrlbus_base_reset_line(&glue->base);

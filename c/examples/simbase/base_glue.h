@@ -82,6 +82,10 @@ int32_t base_glue_init(base_glue_t *glue, const base_glue_options_t *options, ui
  * Cost: O(size). */
 void base_glue_feed(base_glue_t *glue, const uint8_t *data, size_t size);
 
+/* How many bytes base_glue_feed() would take now (ctrlbus_base_rx_free()). ISR-safe, as feed.
+ * Cost: O(1). */
+size_t base_glue_rx_free(const base_glue_t *glue);
+
 /* The host's link has a new peer (a new TCP connection): forget the bytes and the half-received
  * frame of the old one. Main loop only. Cost: O(1). */
 void base_glue_new_line(base_glue_t *glue);

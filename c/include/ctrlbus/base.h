@@ -423,6 +423,15 @@ size_t ctrlbus_base_feed(ctrlbus_base_t *base, const uint8_t *data, size_t len);
  * Cost: O(1), one fence. */
 bool ctrlbus_base_feed_byte(ctrlbus_base_t *base, uint8_t byte);
 
+/* How many bytes the ring can take now (0 for a NULL base): ctrlbus_base_feed() would take that
+ * many. For a receive path that can leave bytes where they are (a UART's FIFO or holding register,
+ * a DMA buffer, a host's socket): take a byte only while this is above 0, and pause the path
+ * otherwise (mask the receive interrupt until the main loop has polled), so that a slow main loop
+ * holds the sender back, or loses bytes in the UART, instead of dropping them here.
+ * ISR-safe in the producer's context (single producer, as ctrlbus_base_feed()): the count can only
+ * grow until the producer feeds again. Cost: O(1). */
+size_t ctrlbus_base_rx_free(const ctrlbus_base_t *base);
+
 /* The main loop's work, at time now_ms: runs the motor watchdog (stopping the wheels through
  * stop_motors or set_wheel_speeds when no CTRL_BUS frame came for more than watchdog_ms, once per
  * silence; a stop of moving wheels counts a trip and registers the health warning

@@ -15,8 +15,10 @@
 #define SYST_CSR_TICKINT 0x2u
 #define SYST_CSR_CLKSOURCE_CPU 0x4u
 
-/* NVIC set-enable / clear-pending for interrupt n (0..31 in the first word, and so on). */
+/* NVIC set-enable / clear-enable / clear-pending for interrupt n (0..31 in the first word, and so
+ * on). */
 #define NVIC_ISER(n) CORTEX_M_REG(0xE000E100u + 4u * ((n) / 32u))
+#define NVIC_ICER(n) CORTEX_M_REG(0xE000E180u + 4u * ((n) / 32u))
 #define NVIC_ICPR(n) CORTEX_M_REG(0xE000E280u + 4u * ((n) / 32u))
 #define NVIC_BIT(n) (1u << ((n) % 32u))
 
@@ -29,6 +31,20 @@ void port_systick_handler(void);
 static inline void cortex_m_enable_irq(uint32_t n)
 {
     NVIC_ICPR(n) = NVIC_BIT(n);
+    NVIC_ISER(n) = NVIC_BIT(n);
+}
+
+/* Masks interrupt n in the NVIC (it can still become pending) until cortex_m_unmask_irq(). The
+ * barriers make sure the handler no longer runs once this returns. */
+static inline void cortex_m_mask_irq(uint32_t n)
+{
+    NVIC_ICER(n) = NVIC_BIT(n);
+    __asm__ volatile("dsb\n\tisb" ::: "memory");
+}
+
+/* Unmasks interrupt n, keeping its pending state: what became pending meanwhile runs now. */
+static inline void cortex_m_unmask_irq(uint32_t n)
+{
     NVIC_ISER(n) = NVIC_BIT(n);
 }
 

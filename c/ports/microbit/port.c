@@ -3,11 +3,13 @@
  * `qemu-system-arm -M microbit` models it (UART0 is QEMU's serial 0).
  *
  * UART: UART0 at 0x40002000, 115200 8N1; the RXDRDY interrupt (IRQ 2) hands each byte to
- * port_uart_received(). The pins are the micro:bit's USB bridge: TX P0.24, RX P0.25.
+ * port_uart_received() while port_uart_room() allows (port.h). The pins are the micro:bit's USB bridge: TX P0.24, RX P0.25.
  * Clock: TIMER0 counts microseconds (16 MHz / 2^4, 32 bits) and port_millis() turns its advance
  * since the last call into milliseconds (a counter read loses no time when interrupts come late;
  * it must be called at least every 71 minutes, the counter's wrap). SysTick interrupts every
  * millisecond, only to wake the main loop from WFI. */
+#include <stdbool.h>
+
 #include "cortex_m.h"
 #include "port.h"
 
@@ -46,6 +48,7 @@
 static uint32_t clock_last_us;
 static uint32_t clock_rest_us; /* below 1000 */
 static uint32_t clock_ms;
+static volatile uint8_t rx_paused; /* the receive interrupt is masked: the application was full */
 
 void port_init(void)
 {
@@ -66,12 +69,27 @@ void port_init(void)
     cortex_m_start_tick(CPU_HZ / 1000u);
 }
 
-void port_uart_irq_handler(void)
+/* Hands the UART's waiting bytes to the application while it has room. Returns false when some had
+ * to stay in the UART. Only one context runs it at a time: the interrupt, or port_idle() while the
+ * interrupt is masked. */
+static bool take_received(void)
 {
-    /* Clear the event before reading RXD: a byte that arrives meanwhile raises it again. */
     while (UART_RXDRDY) {
+        if (port_uart_room() == 0u) {
+            return false;
+        }
+        /* Clear the event before reading RXD: a byte that arrives meanwhile raises it again. */
         UART_RXDRDY = 0;
         port_uart_received((uint8_t)UART_RXD);
+    }
+    return true;
+}
+
+void port_uart_irq_handler(void)
+{
+    if (!take_received()) {
+        cortex_m_mask_irq(PORT_UART_IRQN); /* until port_idle(), after the main loop has polled */
+        rx_paused = 1u;
     }
 }
 
@@ -103,5 +121,9 @@ void port_uart_write(const uint8_t *data, size_t size)
 
 void port_idle(void)
 {
+    if (rx_paused && take_received()) { /* the interrupt is masked: nothing else takes bytes */
+        rx_paused = 0u;
+        cortex_m_unmask_irq(PORT_UART_IRQN); /* a byte that came after the last look runs it now */
+    }
     cortex_m_wait_for_interrupt();
 }

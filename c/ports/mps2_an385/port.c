@@ -4,14 +4,17 @@
  * the board is an FPGA image, so this port has no chip image (README.md).
  *
  * UART: CMSDK APB UART0 at 0x40004000, 115200 8N1; its RX interrupt (IRQ 0) hands each byte to
- * port_uart_received(). QEMU's UART holds one received byte and takes the next from the host only
- * once the firmware has read it, so the host is held back rather than bytes lost.
+ * port_uart_received() while port_uart_room() allows (port.h). QEMU's UART holds one received
+ * byte and takes the next from the host only once the firmware has read it, so the host is held
+ * back rather than bytes lost.
  * Clock: CMSDK APB timer 0 counts down at the system clock, free-running, and port_millis() turns
  * the cycles since its last call into milliseconds (counting SysTick interrupts instead loses time
  * under QEMU: ticks that fall due while the emulated CPU is not running merge into one interrupt;
  * a counter read does not). It must be called at least every 171 s (the counter's wrap). SysTick
  * interrupts every millisecond, only to wake the main loop from WFI.
  * Reset: port_reset() (PORT_HAS_RESET) through the Cortex-M3's AIRCR, for BASE_CMD REBOOT. */
+#include <stdbool.h>
+
 #include "cortex_m.h"
 #include "mps2_an385.h"
 #include "port.h"
@@ -20,6 +23,7 @@
 static uint32_t clock_last_value;
 static uint32_t clock_cycles; /* cycles not yet counted as a whole millisecond */
 static uint32_t clock_ms;
+static volatile uint8_t rx_paused; /* the receive interrupt is masked: the application was full */
 #define CYCLES_PER_MS (MPS2_SYSCLK_HZ / 1000u)
 
 #define UART_BAUD 115200u
@@ -62,13 +66,29 @@ void port_systick_handler(void)
     /* Nothing to do: the tick only wakes the main loop from port_idle(). */
 }
 
+/* Hands the UART's waiting bytes to the application while it has room. Returns false when one had
+ * to stay in the holding register. Only one context runs it at a time: the interrupt, or
+ * port_idle() while the interrupt is masked. */
+static bool take_received(void)
+{
+    while (CMSDK_UART_STATE(MPS2_UART0_BASE) & CMSDK_UART_STATE_RX_FULL) {
+        if (port_uart_room() == 0u) {
+            return false;
+        }
+        port_uart_received((uint8_t)CMSDK_UART_DATA(MPS2_UART0_BASE));
+    }
+    return true;
+}
+
 void port_uart_irq_handler(void)
 {
     /* Clear the interrupt before draining, so a byte that lands after the last read raises it
-     * again instead of being left unnoticed in the holding register. */
+     * again instead of being left unnoticed in the holding register. A byte left there because
+     * the application is full raises nothing more: port_idle() takes it itself. */
     CMSDK_UART_INTSTATUS(MPS2_UART0_BASE) = CMSDK_UART_INT_RX;
-    while (CMSDK_UART_STATE(MPS2_UART0_BASE) & CMSDK_UART_STATE_RX_FULL) {
-        port_uart_received((uint8_t)CMSDK_UART_DATA(MPS2_UART0_BASE));
+    if (!take_received()) {
+        cortex_m_mask_irq(PORT_UART_IRQN); /* until port_idle(), after the main loop has polled */
+        rx_paused = 1u;
     }
 }
 
@@ -83,6 +103,10 @@ void port_uart_write(const uint8_t *data, size_t size)
 
 void port_idle(void)
 {
+    if (rx_paused && take_received()) { /* the interrupt is masked: nothing else takes bytes */
+        rx_paused = 0u;
+        cortex_m_unmask_irq(PORT_UART_IRQN); /* a byte that came after the last look runs it now */
+    }
     cortex_m_wait_for_interrupt();
 }
 

@@ -4,7 +4,7 @@
  * 16 MHz internal oscillator (HSI): no PLL set-up, which a base that needs speed adds.
  *
  * UART: USART1 on PA9 (TX) / PA10 (RX), alternate function 7, 115200 8N1; the RXNE interrupt
- * (IRQ 37) hands each byte to port_uart_received().
+ * (IRQ 37) hands each byte to port_uart_received() while port_uart_room() allows (port.h).
  * Clock: TIM2 (32 bits) counts at 100 kHz and port_millis() turns its advance since the last call
  * into milliseconds (a counter read loses no time when interrupts come late). SysTick interrupts
  * every millisecond, only to wake the main loop from WFI.
@@ -12,6 +12,8 @@
  * STM32_TIMER_HZ is TIM2's input clock: 16 MHz on the chip with this set-up; QEMU's timer model
  * counts at 1 GHz whatever the RCC says, so the image for QEMU is built with
  * -DSTM32_TIMER_HZ=1000000000u. */
+#include <stdbool.h>
+
 #include "cortex_m.h"
 #include "port.h"
 
@@ -65,6 +67,7 @@
 static uint32_t clock_last_count;
 static uint32_t clock_rest; /* counts below a millisecond */
 static uint32_t clock_ms;
+static volatile uint8_t rx_paused; /* the receive interrupt is masked: the application was full */
 
 void port_init(void)
 {
@@ -85,10 +88,25 @@ void port_init(void)
     cortex_m_start_tick(CPU_HZ / 1000u);
 }
 
-void port_uart_irq_handler(void)
+/* Hands the UART's waiting bytes to the application while it has room. Returns false when one had
+ * to stay in the UART. Only one context runs it at a time: the interrupt, or port_idle() while the
+ * interrupt is masked. */
+static bool take_received(void)
 {
     while (USART_SR & USART_SR_RXNE) {
+        if (port_uart_room() == 0u) {
+            return false;
+        }
         port_uart_received((uint8_t)USART_DR); /* reading DR clears RXNE */
+    }
+    return true;
+}
+
+void port_uart_irq_handler(void)
+{
+    if (!take_received()) {
+        cortex_m_mask_irq(PORT_UART_IRQN); /* until port_idle(), after the main loop has polled */
+        rx_paused = 1u;
     }
 }
 
@@ -118,5 +136,9 @@ void port_uart_write(const uint8_t *data, size_t size)
 
 void port_idle(void)
 {
+    if (rx_paused && take_received()) { /* the interrupt is masked: nothing else takes bytes */
+        rx_paused = 0u;
+        cortex_m_unmask_irq(PORT_UART_IRQN); /* a byte that came after the last look runs it now */
+    }
     cortex_m_wait_for_interrupt();
 }

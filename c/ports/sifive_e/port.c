@@ -5,7 +5,8 @@
  *
  * UART: UART0 at 0x10013000; its receive-watermark interrupt (one byte or more waiting) reaches
  * the core through the PLIC (source 3) as a machine external interrupt, whose handler hands each
- * byte to port_uart_received(). 115200 8N1 needs the divisor of the bus clock: 16 MHz on QEMU's
+ * byte to port_uart_received() while port_uart_room() allows; otherwise it masks the interrupt and
+ * leaves the bytes in the UART's FIFO for port_idle() (port.h says why). 115200 8N1 needs the divisor of the bus clock: 16 MHz on QEMU's
  * model, UART_DIVISOR below.
  * Clock: the CLINT's 64-bit mtime; port_millis() turns its advance since the last call into
  * milliseconds (a counter read loses no time when interrupts come late). The machine timer
@@ -13,6 +14,8 @@
  *
  * MTIME_HZ is mtime's rate: 32768 Hz on the chip (the low-frequency clock), 10 MHz in QEMU's
  * model, so the image for QEMU is built with -DMTIME_HZ=10000000u. */
+#include <stdbool.h>
+
 #include "port.h"
 
 #ifndef MTIME_HZ
@@ -27,11 +30,12 @@
 #define UART_TXCTRL REG(UART0 + 0x08u)
 #define UART_RXCTRL REG(UART0 + 0x0Cu)
 #define UART_IE REG(UART0 + 0x10u)
+#define UART_IP REG(UART0 + 0x14u)
 #define UART_DIV REG(UART0 + 0x18u)
 #define UART_TXDATA_FULL (1u << 31)
-#define UART_RXDATA_EMPTY (1u << 31)
 #define UART_ENABLE 1u
 #define UART_IE_RXWM (1u << 1)
+#define UART_IP_RXWM (1u << 1) /* pending: more bytes waiting than the watermark (0) */
 #define UART_DIVISOR (16000000u / 115200u - 1u)
 
 #define PLIC 0x0C000000u
@@ -63,6 +67,7 @@
 static uint32_t clock_last_count; /* the low word is enough: read at least every 2^32 counts */
 static uint32_t clock_rest;       /* counts * 1000 not yet a millisecond, below MTIME_HZ */
 static uint32_t clock_ms;
+static volatile uint8_t rx_paused; /* the receive interrupt is masked: the application was full */
 
 static void set_next_tick(void)
 {
@@ -73,6 +78,20 @@ static void set_next_tick(void)
     MTIMECMP_HI = 0;
 }
 
+/* Hands the UART's waiting bytes to the application while it has room. Returns false when some had
+ * to stay in the FIFO. Only one context runs it at a time: the interrupt, or port_idle() while the
+ * interrupt is masked. */
+static bool take_received(void)
+{
+    while (UART_IP & UART_IP_RXWM) { /* a byte waits: IP tells without taking it */
+        if (port_uart_room() == 0u) {
+            return false;
+        }
+        port_uart_received((uint8_t)UART_RXDATA);
+    }
+    return true;
+}
+
 __attribute__((interrupt("machine"), aligned(4))) static void trap_handler(void)
 {
     uint32_t cause;
@@ -81,8 +100,9 @@ __attribute__((interrupt("machine"), aligned(4))) static void trap_handler(void)
         set_next_tick(); /* the tick only wakes the main loop from port_idle() */
     } else if (cause == (MCAUSE_INTERRUPT | MCAUSE_EXTERNAL)) {
         uint32_t source = PLIC_CLAIM;
-        for (uint32_t data = UART_RXDATA; !(data & UART_RXDATA_EMPTY); data = UART_RXDATA) {
-            port_uart_received((uint8_t)data);
+        if (!take_received()) {
+            UART_IE = 0; /* until port_idle(), after the main loop has polled */
+            rx_paused = 1u;
         }
         PLIC_CLAIM = source; /* complete */
     } else {
@@ -129,5 +149,9 @@ void port_uart_write(const uint8_t *data, size_t size)
 
 void port_idle(void)
 {
+    if (rx_paused && take_received()) { /* the interrupt is masked: nothing else takes bytes */
+        rx_paused = 0u;
+        UART_IE = UART_IE_RXWM; /* a byte that came after the last look raises it at once */
+    }
     __asm__ volatile("wfi" ::: "memory");
 }

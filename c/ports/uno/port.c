@@ -3,7 +3,8 @@
  * code and linker script.
  *
  * UART: USART0, 115200 8N1 (U2X, UBRR 16: 117 647 baud, 2.1 % fast, as every Arduino does);
- * the receive-complete interrupt hands each byte to port_uart_received().
+ * the receive-complete interrupt hands each byte to port_uart_received() while port_uart_room()
+ * allows (port.h).
  * Clock: Timer1 runs free at F_CPU / 1024 (15.625 kHz); port_millis() turns the counter's advance
  * since its last call into milliseconds, so late or merged interrupts lose no time (it must be
  * called at least every 4.19 s, the counter's wrap). Compare match A fires every 16 counts
@@ -79,8 +80,15 @@ void port_init(void)
 }
 
 #if !UNO_QEMU
+static volatile uint8_t rx_paused; /* the receive interrupt is masked: the application was full */
+
 ISR(USART_RX_vect)
 {
+    if (port_uart_room() == 0u) { /* leave the byte in UDR0 until port_idle(), after a poll */
+        UCSR0B = (uint8_t)(UCSR0B & (uint8_t)~(1u << RXCIE0));
+        rx_paused = 1u;
+        return;
+    }
     port_uart_received(UDR0);
 }
 
@@ -145,10 +153,15 @@ void port_uart_write(const uint8_t *data, size_t size)
 void port_idle(void)
 {
 #if UNO_QEMU
-    for (uint8_t taken = 0; taken < RX_POLL_BATCH && (UCSR0A & (1u << RXC0)); taken++) {
+    for (uint8_t taken = 0; taken < RX_POLL_BATCH && (UCSR0A & (1u << RXC0)) && port_uart_room() > 0u;
+         taken++) {
         port_uart_received(UDR0);
     }
 #else
+    if (rx_paused) { /* the main loop has polled: the interrupt takes the waiting byte now */
+        rx_paused = 0u;
+        UCSR0B = (uint8_t)(UCSR0B | (1u << RXCIE0));
+    }
     SMCR = (uint8_t)(1u << SE); /* idle mode; the next interrupt (a byte, the 1 ms wake-up) ends it */
     sleep_cpu();
     SMCR = 0;
