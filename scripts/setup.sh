@@ -21,10 +21,10 @@ APT_GROUP[fuzz]="clang libclang-rt-14-dev"                              # libFuz
 APT_GROUP[bench]="valgrind"                                             # callgrind benchmarks
 APT_GROUP[tshark]="tshark"                                              # Wireshark dissector test
 APT_GROUP[browser]="chromium"                                           # dashboard browser test
-APT_GROUP[tools]="socat zsh"                                            # link tests; zsh completion test
+APT_GROUP[tools]="socat zsh iproute2"                                   # link tests; zsh completion test; test_web's network namespace (ip)
 APT_GROUP[ports]="qemu-system-misc gcc-avr avr-libc binutils-avr gcc-riscv64-unknown-elf picolibc-riscv64-unknown-elf libsimavr-dev libelf-dev pkg-config"  # c/ports: ATmega328P (QEMU, and simavr for the chip image), RV32 (and make size)
 APT_GROUP[sigrok]="sigrok-cli"                                          # sigrok decoder test (tools/sigrok)
-APT_GROUP[pictures]="graphviz mscgen fonts-dejavu-core"                 # make pictures (docs/diagrams)
+APT_GROUP[pictures]="graphviz mscgen fonts-dejavu-core fonts-dejavu-extra"  # make pictures (docs/diagrams); without -extra, dot draws wiring.png otherwise
 APT_GROUP[packaging]="git pkg-config"                                   # release and consumer tests
 APT_GROUP[stress]="stress-ng"                                           # make test-stress (loads both cores)
 
