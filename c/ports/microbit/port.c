@@ -3,7 +3,8 @@
  * `qemu-system-arm -M microbit` models it (UART0 is QEMU's serial 0).
  *
  * UART: UART0 at 0x40002000, 115200 8N1; the RXDRDY interrupt (IRQ 2) hands each byte to
- * port_uart_received() while port_uart_room() allows (port.h). The pins are the micro:bit's USB bridge: TX P0.24, RX P0.25.
+ * port_uart_received() while port_uart_room() allows (port.h). The pins are the micro:bit's USB
+ * bridge: TX P0.24, RX P0.25.
  * Clock: TIMER0 counts microseconds (16 MHz / 2^4, 32 bits) and port_millis() turns its advance
  * since the last call into milliseconds (a counter read loses no time when interrupts come late;
  * it must be called at least every 71 minutes, the counter's wrap). SysTick interrupts every
