@@ -103,9 +103,9 @@ size_t ctrlbus_base_rx_free(const ctrlbus_base_t *base)
         return 0u;
     }
     /* One slot stays empty, so that a full ring is told from an empty one (head == tail). */
-    uint16_t head = base->rx_head, tail = base->rx_tail;
-    uint16_t used = (uint16_t)(head >= tail ? head - tail : base->config->rx_ring_size - tail + head);
-    return (size_t)(base->config->rx_ring_size - 1u - used);
+    uint16_t head = base->rx_head, tail = base->rx_tail, size = base->config->rx_ring_size;
+    uint16_t used = (uint16_t)(head >= tail ? head - tail : size - tail + head);
+    return (size_t)(size - 1u - used);
 }
 
 size_t ctrlbus_base_feed(ctrlbus_base_t *base, const uint8_t *data, size_t len)

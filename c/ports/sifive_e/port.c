@@ -6,8 +6,8 @@
  * UART: UART0 at 0x10013000; its receive-watermark interrupt (one byte or more waiting) reaches
  * the core through the PLIC (source 3) as a machine external interrupt, whose handler hands each
  * byte to port_uart_received() while port_uart_room() allows; otherwise it masks the interrupt and
- * leaves the bytes in the UART's FIFO for port_idle() (port.h says why). 115200 8N1 needs the divisor of the bus clock: 16 MHz on QEMU's
- * model, UART_DIVISOR below.
+ * leaves the bytes in the UART's FIFO for port_idle() (port.h says why). 115200 8N1 needs the
+ * divisor of the bus clock: 16 MHz on QEMU's model, UART_DIVISOR below.
  * Clock: the CLINT's 64-bit mtime; port_millis() turns its advance since the last call into
  * milliseconds (a counter read loses no time when interrupts come late). The machine timer
  * interrupts every millisecond (mtimecmp), only to wake the main loop from WFI.

@@ -153,8 +153,8 @@ void port_uart_write(const uint8_t *data, size_t size)
 void port_idle(void)
 {
 #if UNO_QEMU
-    for (uint8_t taken = 0; taken < RX_POLL_BATCH && (UCSR0A & (1u << RXC0)) && port_uart_room() > 0u;
-         taken++) {
+    for (uint8_t taken = 0;
+         taken < RX_POLL_BATCH && (UCSR0A & (1u << RXC0)) && port_uart_room() > 0u; taken++) {
         port_uart_received(UDR0);
     }
 #else
